@@ -1,0 +1,44 @@
+import pytest
+from packaging.requirements import Requirement
+
+from cbnet_mmdet.utils.version_check import check_versions, declared_ranges
+
+RANGES = {
+    'mmcv': Requirement('mmcv>=2.0.0,<2.2.0'),
+    'mmdet': Requirement('mmdet>=3.3.0,<3.4.0'),
+}
+
+
+def test_inside_ranges_passes():
+    check_versions(RANGES, {'mmcv': '2.1.0', 'mmdet': '3.3.0'})
+
+
+def test_outside_range_names_every_offender():
+    with pytest.raises(ImportError) as err:
+        check_versions(RANGES, {'mmcv': '2.2.0', 'mmdet': '3.1.0'})
+    msg = str(err.value)
+    assert 'mmcv==2.2.0' in msg and 'mmcv<2.2.0,>=2.0.0' in msg
+    assert 'mmdet==3.1.0' in msg
+    assert 'tools/install.sh' in msg
+
+
+def test_missing_package_is_reported():
+    with pytest.raises(ImportError, match='mmdet is not installed'):
+        check_versions(RANGES, {'mmcv': '2.1.0', 'mmdet': None})
+
+
+def test_prerelease_inside_range_accepted():
+    check_versions({'mmcv': Requirement('mmcv>=2.0.0rc4,<2.2.0')},
+                   {'mmcv': '2.0.0rc4'})
+
+
+def test_declared_ranges_come_from_installed_metadata():
+    ranges = declared_ranges()
+    # the installed cbnet_mmdet declares all three (requirements/runtime.txt)
+    assert set(ranges) == {'mmcv', 'mmdet', 'mmengine'}
+    assert ranges['mmcv'].specifier.contains('2.1.0')
+    assert not ranges['mmcv'].specifier.contains('2.2.0')
+
+
+def test_unknown_distribution_checks_nothing():
+    assert declared_ranges('no-such-distribution-xyz') == {}
