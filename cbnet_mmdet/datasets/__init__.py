@@ -1,0 +1,9 @@
+from .cityscapes import CBNetCityscapesDataset
+from .foggy_cityscapes import CBNetFoggyCityscapesDataset
+from .paired_foggy_dataset import CBNetPairedFoggyDataset
+from .transforms import *  # noqa: F401,F403
+
+__all__ = [
+    'CBNetCityscapesDataset', 'CBNetFoggyCityscapesDataset',
+    'CBNetPairedFoggyDataset'
+]

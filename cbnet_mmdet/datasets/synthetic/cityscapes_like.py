@@ -1,0 +1,369 @@
+"""Generate a small dataset in the exact Cityscapes / Foggy Cityscapes layout.
+
+Written under ``out_root``::
+
+    leftImg8bit/{split}/{city}/{stem}_leftImg8bit.png          RGB, uint8
+    gtFine/{split}/{city}/{stem}_gtFine_polygons.json          polygons
+    gtFine/{split}/{city}/{stem}_gtFine_labelIds.png           uint8
+    gtFine/{split}/{city}/{stem}_gtFine_instanceIds.png        16 bit
+    depth/{split}/{city}/{stem}_depth.png                      16 bit, cm
+    leftImg8bit_foggy/{split}/{city}/
+        {stem}_leftImg8bit_foggy_beta_{0.005,0.01,0.02}.png    RGB, uint8
+    generator_record.json                                      what was drawn
+
+The label and instance images are rendered from the polygons by
+cityscapesscripts' own ``createLabelImage`` / ``createInstanceImage``, so
+their encodings are the released ones: ``labelIds`` per
+``cityscapesscripts.helpers.labels``, ``instanceIds = labelId * 1000 + k``
+for instances and ``labelId`` for crowd (``*group``) and stuff regions.
+
+The depth PNG stores the distance to the camera in centimetres (uint16,
+65535 = 655.35 m; sky = 600 m). The foggy images apply the atmospheric
+scattering model used to build Foggy Cityscapes (Sakaridis et al., 2018)
+to that stored depth: ``I = R t + L (1 - t)``, ``t = exp(-beta d)`` with
+``R`` the clear image and ``L`` the atmospheric light in [0, 1], ``d`` in
+metres and ``beta`` in 1/m (visibility 2.996 / beta: 150 m at 0.02).
+
+Everything is a function of ``seed`` (each image has its own random stream
+from ``(seed, split, index)``): the same call writes byte-identical files.
+"""
+import json
+import os
+import os.path as osp
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from cityscapesscripts.helpers.annotation import Annotation
+from cityscapesscripts.helpers.labels import id2label, name2label
+from cityscapesscripts.preparation.json2instanceImg import \
+    createInstanceImage
+from cityscapesscripts.preparation.json2labelImg import createLabelImage
+from mmengine.utils import track_parallel_progress, track_progress
+from PIL import Image, ImageDraw
+from ..cityscapes_paths import FOGGY_BETAS, foggy_path
+from .scene import (INSTANCE_CLASSES, SceneCamera, ScenePolygon,
+                    sample_scene)
+
+#: Cities of each split (real Cityscapes city names).
+CITIES = {'train': ('aachen', 'bochum'), 'val': ('frankfurt', 'lindau')}
+#: Atmospheric light of the foggy images, RGB in [0, 1] (a bright grey,
+#: as estimated for most Foggy Cityscapes images).
+ATMOSPHERIC_LIGHT = (0.82, 0.83, 0.85)
+#: Depth PNG scale: stored value = metres * DEPTH_SCALE.
+DEPTH_SCALE = 100.0
+#: Scenes are redrawn (up to MAX_TRIES times) until each of the 8 classes
+#: has an instance at least MIN_VISIBLE_PX pixels visible (occlusions may
+#: hide one entirely).
+MAX_TRIES, MIN_VISIBLE_PX = 50, 4
+#: Colours of the background ('stuff') labels, RGB; instances use their
+#: Cityscapes palette colour.
+STUFF_COLOURS = {
+    'sky': (140, 175, 215),
+    'building': (115, 108, 100),
+    'vegetation': (85, 125, 55),
+    'sidewalk': (175, 170, 162),
+    'road': (92, 92, 98),
+}
+#: Record of what was drawn, written at ``out_root``.
+RECORD_FILE = 'generator_record.json'
+
+
+def image_stem(split: str, index: int) -> Tuple[str, str]:
+    """``(city, stem)`` of image ``index`` of ``split``, e.g.
+    ``('frankfurt', 'frankfurt_000001_000019')``."""
+    cities = CITIES[split]
+    city = cities[index % len(cities)]
+    # 000019 is the annotated frame of every Cityscapes sequence
+    return city, f'{city}_{index:06d}_000019'
+
+
+def _texture(cls_idx: np.ndarray, u: np.ndarray, v: np.ndarray
+             ) -> np.ndarray:
+    """Per-class texture in [-1, 1], laid in object coordinates.
+
+    Args:
+        cls_idx (np.ndarray): ``int[H, W]`` index into
+            :data:`INSTANCE_CLASSES`, -1 for stuff.
+        u (np.ndarray): ``float[H, W]`` x inside the object box, 0..1.
+        v (np.ndarray): ``float[H, W]`` y inside the object box, 0..1.
+
+    Returns:
+        np.ndarray: ``float[H, W]``; 0 on stuff.
+    """
+    tau = 2 * np.pi
+    patterns = (
+        lambda u, v: np.sin(tau * 4 * u),                   # person: |||
+        lambda u, v: np.sin(tau * 3 * (u + v)),             # rider: ///
+        lambda u, v: np.where(v < 0.4, -1.0, 0.3),          # car: windows
+        lambda u, v: np.sin(tau * 3 * v),                   # truck: ===
+        lambda u, v: np.where(                              # bus: windows
+            (v > .15) & (v < .45) & (np.mod(6 * u, 1) < .6), 1., -.3),
+        lambda u, v: np.sign(np.sin(tau * 8 * v)),          # train: lines
+        lambda u, v: np.where(                              # motorcycle:
+            (np.floor(4 * u) + np.floor(4 * v)) % 2 == 0, 1., -1.),  # chess
+        lambda u, v: np.sin(tau * 4 * u) * np.sin(tau * 4 * v),  # bicycle
+    )
+    tex = np.zeros(u.shape)
+    for k, pattern in enumerate(patterns):  # 8 classes, pixels vectorised
+        sel = cls_idx == k
+        tex[sel] = pattern(u[sel], v[sel])
+    return tex
+
+
+def render_rgb(order: np.ndarray, scene: Sequence[ScenePolygon],
+               rng: np.random.Generator) -> np.ndarray:
+    """Colour a rasterised scene.
+
+    Each pixel takes its label's Cityscapes colour, scaled by a random
+    brightness per polygon and modulated by its class texture (instances
+    only), plus Gaussian noise.
+
+    Args:
+        order (np.ndarray): ``int32[H, W]`` index of the polygon covering
+            each pixel (painter's order, last drawn wins).
+        scene (Sequence[ScenePolygon]): The scene polygons.
+        rng (np.random.Generator): Source of randomness.
+
+    Returns:
+        np.ndarray: ``uint8[H, W, 3]`` RGB image.
+    """
+    h, w = order.shape
+    colour = np.array([
+        STUFF_COLOURS.get(p.label, name2label[_base(p.label)].color)
+        for p in scene
+    ], np.float64)
+    gain = rng.uniform(0.75, 1.15, size=len(scene))
+    boxes = np.array([p.box for p in scene], np.float64)
+    cls_of = np.array([
+        INSTANCE_CLASSES.index(_base(p.label))
+        if _base(p.label) in INSTANCE_CLASSES else -1 for p in scene
+    ])
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    box = boxes[order]
+    u = (xs - box[..., 0]) / np.maximum(box[..., 2], 1.0)
+    v = (ys - box[..., 1]) / np.maximum(box[..., 3], 1.0)
+    tex = _texture(cls_of[order], u, v)
+    # textures darken/brighten by up to 35%, plus a floor so dark classes
+    # (truck, bus: near-black in the Cityscapes palette) still show them
+    rgb = (colour[order] * gain[order, None] * (1 + 0.35 * tex[..., None])
+           + 40 * (tex[..., None] + 1) * (cls_of[order, None] >= 0))
+    rgb += rng.normal(0, 6, size=rgb.shape)
+    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+
+
+def render_depth(order: np.ndarray, scene: Sequence[ScenePolygon],
+                 cam: SceneCamera) -> np.ndarray:
+    """Depth map of a rasterised scene, ``uint16[H, W]`` in centimetres.
+
+    Objects, buildings and sky have a constant depth; road and sidewalk
+    follow the ground plane row by row.
+    """
+    depth = np.array([p.depth for p in scene])[order]
+    ground = np.broadcast_to(cam.ground_depth()[:, None], order.shape)
+    depth = np.where(np.isnan(depth), ground, depth)
+    return np.clip(np.rint(depth * DEPTH_SCALE), 0,
+                   np.iinfo(np.uint16).max).astype(np.uint16)
+
+
+def add_fog(rgb: np.ndarray, depth_m: np.ndarray, beta: float,
+            light: Sequence[float] = ATMOSPHERIC_LIGHT) -> np.ndarray:
+    """Atmospheric scattering model ``I = R t + L (1 - t)``,
+    ``t = exp(-beta d)``.
+
+    Args:
+        rgb (np.ndarray): ``uint8[H, W, 3]`` clear image ``R``.
+        depth_m (np.ndarray): ``float[H, W]`` distance ``d``, metres.
+        beta (float): Attenuation coefficient, 1/m.
+        light (Sequence[float]): Atmospheric light ``L``, RGB in [0, 1].
+
+    Returns:
+        np.ndarray: ``uint8[H, W, 3]`` foggy image.
+    """
+    t = np.exp(-beta * depth_m)[..., None]
+    foggy = rgb / 255.0 * t + np.asarray(light, np.float64) * (1 - t)
+    return np.clip(np.rint(foggy * 255), 0, 255).astype(np.uint8)
+
+
+def _base(label: str) -> str:
+    return label[:-len('group')] if label.endswith('group') else label
+
+
+def _polygons_json(scene: Sequence[ScenePolygon], cam: SceneCamera) -> dict:
+    """The ``*_gtFine_polygons.json`` content (the released keys)."""
+    return dict(
+        imgHeight=cam.height,
+        imgWidth=cam.width,
+        objects=[
+            dict(label=p.label, polygon=p.polygon.tolist()) for p in scene
+        ])
+
+
+def _rasterise(polys: dict) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rasterise a polygons JSON.
+
+    Returns:
+        tuple: ``uint8[H, W]`` label ids and ``int32[H, W]`` instance ids
+        (cityscapesscripts' renderers), and ``int32[H, W]`` index of the
+        polygon covering each pixel (same painter's order, for colours and
+        depth).
+    """
+    ann = Annotation()
+    ann.fromJsonText(json.dumps(polys))
+    label_ids = np.asarray(createLabelImage(ann, 'ids'), np.uint8)
+    inst_ids = np.asarray(createInstanceImage(ann, 'ids'), np.int32)
+    order = Image.new('I', (polys['imgWidth'], polys['imgHeight']), 0)
+    draw = ImageDraw.Draw(order)
+    for i, obj in enumerate(polys['objects']):
+        draw.polygon([tuple(p) for p in obj['polygon']], fill=i)
+    return label_ids, inst_ids, np.asarray(order, np.int32)
+
+
+def _instances(inst_ids: np.ndarray) -> List[dict]:
+    """What the instance image holds for the 8 classes: one entry per id
+    with its label, crowd flag and visible area in pixels."""
+    counts = np.bincount(inst_ids.ravel())
+    ids = np.flatnonzero(counts)
+    areas = counts[ids]
+    label_ids = np.where(ids >= 1000, ids // 1000, ids)
+    keep = np.isin(label_ids,
+                   [name2label[c].id for c in INSTANCE_CLASSES])
+    return [
+        dict(instance_id=int(i), label=id2label[int(lab)].name,
+             label_id=int(lab), iscrowd=int(i < 1000), area=int(a))
+        for i, lab, a in zip(ids[keep], label_ids[keep], areas[keep])
+    ]
+
+
+def _save(arr: np.ndarray, path: str) -> None:
+    os.makedirs(osp.dirname(path), exist_ok=True)
+    # fast zlib level: noisy images barely compress better at the default 6
+    Image.fromarray(arr).save(path, compress_level=1)
+
+
+def generate_image(out_root: str, split: str, index: int,
+                   img_size: Tuple[int, int], seed: int,
+                   betas: Sequence[float], empty: bool,
+                   crowd: bool) -> dict:
+    """Generate and write one image with all its files.
+
+    Args:
+        out_root (str): Dataset root.
+        split (str): ``'train'`` or ``'val'``.
+        index (int): Image index within the split.
+        img_size (tuple[int, int]): ``(height, width)``, pixels.
+        seed (int): Dataset seed.
+        betas (Sequence[float]): Fog densities to write, 1/m.
+        empty (bool): Draw no instances.
+        crowd (bool): Add a crowd region.
+
+    Returns:
+        dict: Record ``{split, city, stem, height, width, instances}`` with
+        ``instances`` as in :func:`_instances`.
+    """
+    split_code = tuple(CITIES).index(split)
+    rng = np.random.default_rng(np.random.SeedSequence(
+        [seed, split_code, index]))
+    cam = SceneCamera(*img_size)
+    for _ in range(MAX_TRIES):
+        scene = sample_scene(cam, rng, empty=empty, crowd=crowd)
+        polys = _polygons_json(scene, cam)
+        label_ids, inst_ids, order = _rasterise(polys)
+        visible = {i['label'] for i in _instances(inst_ids)
+                   if not i['iscrowd'] and i['area'] >= MIN_VISIBLE_PX}
+        if empty or visible == set(INSTANCE_CLASSES):
+            break
+    else:
+        raise RuntimeError(
+            f'could not draw all 8 classes visibly in {MAX_TRIES} tries '
+            f'at {img_size}: use a larger image size')
+    rgb = render_rgb(order, scene, rng)
+    depth = render_depth(order, scene, cam)
+
+    city, stem = image_stem(split, index)
+    gt = osp.join(out_root, 'gtFine', split, city, stem + '_gtFine_')
+    img_path = osp.join(out_root, 'leftImg8bit', split, city,
+                        stem + '_leftImg8bit.png')
+    _save(rgb, img_path)
+    _save(label_ids, gt + 'labelIds.png')
+    # 16-bit like the released files (ids reach 33999)
+    _save(inst_ids.astype(np.uint16), gt + 'instanceIds.png')
+    with open(gt + 'polygons.json', 'w') as f:
+        json.dump(polys, f, indent=1)
+    _save(depth, osp.join(out_root, 'depth', split, city, stem + '_depth.png'))
+    for beta in betas:
+        _save(add_fog(rgb, depth / DEPTH_SCALE, beta),
+              foggy_path(img_path, beta))
+    return dict(split=split, city=city, stem=stem, height=cam.height,
+                width=cam.width, instances=_instances(inst_ids))
+
+
+def _generate_job(job: tuple) -> dict:
+    return generate_image(*job)
+
+
+def generate_cityscapes_like(out_root: str,
+                             num_train: int = 40,
+                             num_val: int = 10,
+                             img_size: Tuple[int, int] = (256, 512),
+                             seed: int = 0,
+                             betas: Sequence[float] = FOGGY_BETAS,
+                             empty_every: int = 5,
+                             crowd_every: int = 2,
+                             nproc: int = 1) -> Dict[str, list]:
+    """Write a deterministic Cityscapes-like dataset (train and val).
+
+    Args:
+        out_root (str): Dataset root, created if missing.
+        num_train (int): Training images.
+        num_val (int): Validation images.
+        img_size (tuple[int, int]): ``(height, width)`` in pixels; the
+            default 256x512 keeps the demo trainable on a CPU.
+        seed (int): Seed; equal seeds give byte-identical files.
+        betas (Sequence[float]): Fog attenuation coefficients, 1/m, each
+            one of :data:`FOGGY_BETAS`.
+        empty_every (int): Every ``empty_every``-th image of a split
+            (index ``empty_every - 1``, ``2 * empty_every - 1``...) has no
+            instances; 0 for none.
+        crowd_every (int): Every ``crowd_every``-th non-empty image (from
+            index 0) has a crowd region; 0 for none.
+        nproc (int): Worker processes.
+
+    Returns:
+        dict[str, list]: Per split, the records of :func:`generate_image`
+        (also written to ``out_root/generator_record.json``).
+    """
+    for beta in betas:
+        if beta not in FOGGY_BETAS:
+            raise ValueError(f'beta {beta} is not one of {FOGGY_BETAS}')
+    h, w = img_size
+    if h < 32 or w < 32:
+        raise ValueError(f'img_size must be at least 32x32, got {img_size}')
+    jobs = []
+    for split, num in (('train', num_train), ('val', num_val)):
+        for i in range(num):
+            empty = empty_every > 0 and (i + 1) % empty_every == 0
+            crowd = (not empty and crowd_every > 0 and i % crowd_every == 0)
+            jobs.append((out_root, split, i, (h, w), seed, tuple(betas),
+                         empty, crowd))
+    if nproc > 1:
+        records = track_parallel_progress(_generate_job, jobs, nproc)
+    else:
+        records = track_progress(_generate_job, jobs)
+    out = {'train': [], 'val': []}
+    for rec in records:
+        out[rec['split']].append(rec)
+    meta = dict(seed=seed, img_size=[h, w], betas=list(betas),
+                depth_unit_m=1 / DEPTH_SCALE,
+                atmospheric_light=list(ATMOSPHERIC_LIGHT), splits=out)
+    with open(osp.join(out_root, RECORD_FILE), 'w') as f:
+        json.dump(meta, f, indent=1)
+    return out
+
+
+def load_record(out_root: str) -> Optional[dict]:
+    """The record written by :func:`generate_cityscapes_like`, or None."""
+    path = osp.join(out_root, RECORD_FILE)
+    if not osp.isfile(path):
+        return None
+    with open(path) as f:
+        return json.load(f)

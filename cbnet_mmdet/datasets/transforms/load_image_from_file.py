@@ -1,0 +1,50 @@
+"""Image loading that names the file when it cannot be read."""
+from typing import Optional
+
+from mmcv.transforms import LoadImageFromFile
+from mmdet.registry import TRANSFORMS
+
+
+@TRANSFORMS.register_module()
+class CBNetLoadImageFromFile(LoadImageFromFile):
+    """``LoadImageFromFile`` with clear errors.
+
+    MMCV's transform raises a bare ``AssertionError`` (stripped under
+    ``python -O``) or a decoder error without the path when an image is
+    corrupt. This one raises ``FileNotFoundError`` for a missing image and
+    ``ValueError`` for an undecodable one, both naming the file. With
+    ``ignore_empty=True`` such images are skipped as in MMCV. An image
+    whose size differs from the ``height``/``width`` its annotations give
+    (the dataset's data info) raises ``ValueError`` naming the file,
+    instead of a reshape error when its masks are decoded.
+
+    Args:
+        **kwargs: ``mmcv.transforms.LoadImageFromFile`` arguments.
+    """
+
+    def transform(self, results: dict) -> Optional[dict]:
+        """Load ``results['img_path']`` into ``results['img']``
+        (``uint8[H, W, 3]`` BGR by default).
+
+        Returns:
+            dict | None: ``results`` with ``img``, ``img_shape``,
+            ``ori_shape``; None when skipped (``ignore_empty``).
+        """
+        filename = results['img_path']
+        try:
+            out = super().transform(results)
+        except FileNotFoundError as err:
+            raise FileNotFoundError(f'image not found: {filename}') from err
+        except Exception as err:  # corrupt data: any decoder error
+            if self.ignore_empty:
+                return None
+            raise ValueError(
+                f'cannot decode image {filename}: {err!r}') from err
+        if out is not None and 'height' in results and 'width' in results:
+            expected = (results['height'], results['width'])
+            if tuple(out['img'].shape[:2]) != expected:
+                raise ValueError(
+                    f'image {filename} is {out["img"].shape[0]}x'
+                    f'{out["img"].shape[1]} (HxW) but its annotations say '
+                    f'{expected[0]}x{expected[1]}')
+        return out

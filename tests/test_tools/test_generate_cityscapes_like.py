@@ -1,0 +1,26 @@
+import importlib.util
+import json
+import os.path as osp
+
+TOOL = osp.join(osp.dirname(__file__), '..', '..', 'tools', 'misc',
+                'generate_cityscapes_like.py')
+
+
+def test_generate_cli(tmp_path, capsys):
+    spec = importlib.util.spec_from_file_location('gen_tool', TOOL)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    root = tmp_path / 'cs'
+    tool.main([str(root), '--num-train', '2', '--num-val', '1', '--size',
+               '96', '192', '--seed', '1', '--betas', '0.01', '--convert'])
+    out = capsys.readouterr().out
+    assert 'train: 2 images' in out and 'val: 1 images' in out
+    assert (root / 'leftImg8bit' / 'val' / 'frankfurt' /
+            'frankfurt_000000_000019_leftImg8bit.png').is_file()
+    assert (root / 'leftImg8bit_foggy' / 'val' / 'frankfurt' /
+            'frankfurt_000000_000019_leftImg8bit_foggy_beta_0.01.png'
+            ).is_file()
+    with open(root / 'annotations' /
+              'instancesonly_filtered_gtFine_train.json') as f:
+        coco = json.load(f)
+    assert len(coco['images']) == 2 and len(coco['annotations']) >= 16
