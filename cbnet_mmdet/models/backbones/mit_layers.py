@@ -1,0 +1,165 @@
+"""Building blocks of :class:`CBNetMiT`: attention and encoder layer.
+
+Both reuse MMDetection's PVTv2 pieces (``SpatialReductionAttention`` and
+``MixFFN`` from ``mmdet.models.backbones.pvt``), which are the SegFormer
+MiT blocks with mmsegmentation's parameter layout. We add the optional
+CSPE term (:mod:`.cspe`) to the attention logits.
+"""
+from typing import Optional, Tuple
+
+import torch.nn.functional as F
+from mmcv.cnn import build_norm_layer
+from mmdet.models.backbones.pvt import MixFFN, SpatialReductionAttention
+from mmdet.models.layers import nchw_to_nlc, nlc_to_nchw
+from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
+from mmengine.model import BaseModule
+from torch import Tensor
+
+from .cspe import ContextualPositionEncoding
+
+
+class CSPESpatialReductionAttention(SpatialReductionAttention):
+    """Spatial-reduction attention with an optional CSPE logit term.
+
+    With ``cspe_cfg=None`` this is exactly MMDetection's (and
+    mmsegmentation's) MiT attention. Otherwise the term
+    ``q_i . r_ij / sqrt(d)`` of formula (1) is passed to
+    ``nn.MultiheadAttention`` as an additive float ``attn_mask``; the query
+    projection ``x W^Q`` is recomputed for it from ``in_proj_weight`` (one
+    extra ``N x C x C`` matmul, kept so the parameter layout stays that of
+    the pretrained checkpoints).
+
+    Args:
+        embed_dims (int): Channels ``C``.
+        num_heads (int): Attention heads.
+        sr_ratio (int): Spatial-reduction ratio of keys/values.
+        cspe_cfg (dict, optional): ``alpha``/``beta``/``gamma`` of
+            :class:`ContextualPositionEncoding`; ``None`` disables CSPE.
+        **kwargs: Remaining arguments of ``SpatialReductionAttention``.
+    """
+
+    def __init__(self,
+                 embed_dims: int,
+                 num_heads: int,
+                 sr_ratio: int = 1,
+                 cspe_cfg: OptConfigType = None,
+                 **kwargs) -> None:
+        super().__init__(
+            embed_dims, num_heads, sr_ratio=sr_ratio, **kwargs)
+        self.cspe = None
+        if cspe_cfg is not None:
+            self.cspe = ContextualPositionEncoding(
+                num_heads, embed_dims // num_heads, **cspe_cfg)
+
+    def forward(self,
+                x: Tensor,
+                hw_shape: Tuple[int, int],
+                identity: Optional[Tensor] = None) -> Tensor:
+        """Attend from the token grid to its spatially-reduced copy.
+
+        Args:
+            x (Tensor[B, H*W, C]): Normalised tokens.
+            hw_shape (tuple[int, int]): Token grid ``(H, W)``.
+            identity (Tensor[B, H*W, C], optional): Residual; ``x`` if None.
+
+        Returns:
+            Tensor[B, H*W, C]: ``identity + attention(x)``.
+        """
+        if self.sr_ratio > 1 and min(hw_shape) < self.sr_ratio:
+            raise ValueError(
+                f'CBNetMiT: token grid {tuple(hw_shape)} is smaller than the '
+                f'spatial-reduction ratio {self.sr_ratio}; the input image '
+                'must be at least 29x29 pixels')
+        if self.cspe is None:
+            return super().forward(x, hw_shape, identity)
+        if identity is None:
+            identity = x
+        if self.sr_ratio > 1:
+            x_kv = self.sr(nlc_to_nchw(x, hw_shape))
+            kv_shape = tuple(x_kv.shape[2:])
+            x_kv = self.norm(nchw_to_nlc(x_kv))
+        else:
+            x_kv, kv_shape = x, tuple(hw_shape)
+        batch, num_q, channels = x.shape
+        heads = self.num_heads
+        mha = self.attn
+        bias = mha.in_proj_bias
+        q = F.linear(x, mha.in_proj_weight[:channels],
+                     None if bias is None else bias[:channels])
+        q = q.view(batch, num_q, heads, channels // heads).transpose(1, 2)
+        pos = self.cspe(q, hw_shape, kv_shape, self.sr_ratio)
+        pos = pos.reshape(batch * heads, num_q, x_kv.shape[1])
+        out = mha(
+            query=x.transpose(0, 1),
+            key=x_kv.transpose(0, 1),
+            value=x_kv.transpose(0, 1),
+            attn_mask=pos,
+            need_weights=False)[0].transpose(0, 1)
+        return identity + self.dropout_layer(self.proj_drop(out))
+
+
+class MiTEncoderLayer(BaseModule):
+    """One MiT block: SR attention then Mix-FFN, each pre-norm residual.
+
+    Parameter names follow mmsegmentation's ``MixVisionTransformer``
+    (``norm1``, ``attn.attn.in_proj_weight``, ``attn.sr``, ``attn.norm``,
+    ``norm2``, ``ffn.layers.{0,1,4}``), plus ``attn.cspe.table`` with CSPE.
+
+    Args:
+        embed_dims (int): Channels ``C``.
+        num_heads (int): Attention heads.
+        feedforward_channels (int): Hidden channels of Mix-FFN.
+        sr_ratio (int): Spatial-reduction ratio.
+        drop_rate (float): Dropout after attention and in the FFN.
+        attn_drop_rate (float): Dropout on attention weights.
+        drop_path_rate (float): Stochastic-depth rate of both branches.
+        qkv_bias (bool): Bias of the q/k/v projections.
+        act_cfg (dict): FFN activation (e.g. ``dict(type='Mish')``).
+        norm_cfg (dict): Token normalisation layer.
+        cspe_cfg (dict, optional): CSPE settings; ``None`` disables it.
+        init_cfg (dict or list[dict], optional): Initialization config.
+    """
+
+    def __init__(self,
+                 embed_dims: int,
+                 num_heads: int,
+                 feedforward_channels: int,
+                 sr_ratio: int = 1,
+                 drop_rate: float = 0.,
+                 attn_drop_rate: float = 0.,
+                 drop_path_rate: float = 0.,
+                 qkv_bias: bool = True,
+                 act_cfg: ConfigType = dict(type='Mish'),
+                 norm_cfg: ConfigType = dict(type='LN', eps=1e-6),
+                 cspe_cfg: OptConfigType = None,
+                 init_cfg: OptMultiConfig = None) -> None:
+        super().__init__(init_cfg=init_cfg)
+        drop_path = dict(type='DropPath', drop_prob=drop_path_rate)
+        self.norm1 = build_norm_layer(norm_cfg, embed_dims)[1]
+        self.attn = CSPESpatialReductionAttention(
+            embed_dims=embed_dims,
+            num_heads=num_heads,
+            attn_drop=attn_drop_rate,
+            proj_drop=drop_rate,
+            dropout_layer=drop_path,
+            qkv_bias=qkv_bias,
+            norm_cfg=norm_cfg,
+            sr_ratio=sr_ratio,
+            cspe_cfg=cspe_cfg)
+        self.norm2 = build_norm_layer(norm_cfg, embed_dims)[1]
+        self.ffn = MixFFN(
+            embed_dims=embed_dims,
+            feedforward_channels=feedforward_channels,
+            act_cfg=act_cfg,
+            ffn_drop=drop_rate,
+            dropout_layer=drop_path,
+            use_conv=True)
+
+    def forward(self, x: Tensor, hw_shape: Tuple[int, int]) -> Tensor:
+        """Args: x (Tensor[B, H*W, C]); hw_shape ``(H, W)``.
+
+        Returns:
+            Tensor[B, H*W, C]: Updated tokens.
+        """
+        x = self.attn(self.norm1(x), hw_shape, identity=x)
+        return self.ffn(self.norm2(x), hw_shape, identity=x)
