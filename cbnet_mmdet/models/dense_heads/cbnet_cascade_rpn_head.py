@@ -1,0 +1,228 @@
+"""The paper's two-stage Cascade RPN (CRPN, paper Sec. II.B)."""
+import copy
+from typing import List, Optional, Sequence, Union
+
+from mmdet.models.dense_heads import CascadeRPNHead
+from mmdet.registry import MODELS
+from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
+from mmengine.config import ConfigDict
+
+# Stage 1 (anchor refinement) assigns by the anchor-centre region of each
+# ground truth, without sampling; stage 2 (proposal refinement) by IoU with
+# the stage-1 boxes. Stage 2 keeps every anchor (no sampler): the sigmoid
+# focal loss down-weights the many easy negatives, which is why the paper
+# uses it ("we generate more proposals in the prior stage").
+DEFAULT_TRAIN_CFG = (
+    dict(
+        assigner=dict(
+            type='RegionAssigner', center_ratio=0.2, ignore_ratio=0.5),
+        allowed_border=-1,
+        pos_weight=-1,
+        debug=False),
+    dict(
+        assigner=dict(
+            type='MaxIoUAssigner',
+            pos_iou_thr=0.7,
+            neg_iou_thr=0.7,
+            min_pos_iou=0.3,
+            ignore_iof_thr=-1),
+        allowed_border=-1,
+        pos_weight=-1,
+        debug=False),
+)
+
+# k = 1000 proposals per image (paper Sec. II.B).
+DEFAULT_TEST_CFG = dict(
+    nms_pre=2000,
+    max_per_img=1000,
+    nms=dict(type='nms', iou_threshold=0.8),
+    min_bbox_size=0)
+
+
+@MODELS.register_module()
+class CBNetCascadeRPNHead(CascadeRPNHead):
+    """Cascade RPN with the CBNet training objective (paper (2), (3)).
+
+    Two ``StageCascadeRPNHead`` stages (Vu et al. 2019) on a pyramid:
+
+    - stage 1: one square anchor per location, adaptive convolution in
+      dilation mode (uniform anchors), class-agnostic box regression on
+      decoded boxes with the IoU loss ``1 - IoU`` (``lambda_IoU = 10``);
+      its boxes become the anchors of stage 2 (detached, as in Cascade RPN).
+    - stage 2: adaptive convolution in offset mode: a deformable
+      convolution (``mmcv.ops.DeformConv2d``) whose 3x3 sampling grid is
+      laid over each stage-1 box; objectness with the sigmoid focal loss
+      (``lambda_obj = 1``) and box regression with the GIoU loss
+      (``lambda_GIoU = 10``) on decoded boxes.
+
+    The head keeps MMDet's ``loss``, ``loss_and_predict`` and ``predict``,
+    so it replaces ``RPNHead`` in any two-stage detector (Faster/Mask/
+    Cascade R-CNN) or serves the ``RPN`` detector. In a stock Faster R-CNN
+    config::
+
+        model = dict(
+            rpn_head=dict(_delete_=True, type='CBNetCascadeRPNHead'),
+            train_cfg=dict(rpn=None))  # or a list of two per-stage dicts
+
+    ``train_cfg.rpn=None`` selects the per-stage defaults below; the
+    detector's ``train_cfg.rpn_proposal`` / ``test_cfg.rpn`` then set ``k``
+    as ``max_per_img`` (1000 in MMDet's Faster R-CNN).
+
+    Loss normalisation: MMDet's stage head averages both losses of a stage
+    over ``number of anchors / 200`` when nothing is sampled; paper (2)
+    averages the focal loss over the ``H/4 x W/4`` positions. The two differ
+    by a constant factor (about 150 for a 4..64 pyramid), absorbed by the
+    loss weights; we keep MMDet's so its published weights stay meaningful.
+
+    Args:
+        num_classes (int): Must be 1 (class-agnostic). Defaults to 1.
+        in_channels (int): Channels of every input level. Defaults to 256.
+        feat_channels (int): Channels of the adaptive convolutions.
+            Defaults to 256.
+        strides (Sequence[int]): Stride of each input level (pixels).
+            Defaults to (4, 8, 16, 32, 64).
+        anchor_scale (int): Anchor side in units of the level stride.
+            Defaults to 8.
+        dilation (int): Dilation of stage 1's adaptive convolution.
+            Defaults to 3.
+        target_stds (Sequence[Sequence[float]]): ``DeltaXYWHBBoxCoder``
+            standard deviations of stage 1 and stage 2.
+        loss_iou (dict): Stage-1 regression loss; ``loss_weight`` is
+            ``lambda_IoU``. Defaults to linear ``IoULoss``, weight 10.
+        loss_obj (dict): Stage-2 objectness loss; ``loss_weight`` is
+            ``lambda_obj``. Defaults to sigmoid ``FocalLoss`` (gamma 2,
+            alpha 0.25), weight 1.
+        loss_giou (dict): Stage-2 regression loss; ``loss_weight`` is
+            ``lambda_GIoU``. Defaults to ``GIoULoss``, weight 10.
+        obj_prior_prob (float): Initial objectness probability of stage 2
+            (its classifier bias is set to ``-log((1 - p) / p)``, as for
+            focal-loss heads). Defaults to 0.01.
+        train_cfg (list[dict], optional): One training config per stage
+            (assigner, optional sampler, ``allowed_border``, ``pos_weight``).
+            None uses ``DEFAULT_TRAIN_CFG``.
+        test_cfg (dict, optional): Proposal post-processing: ``nms_pre``
+            (boxes per level before NMS), ``max_per_img`` (k), ``nms``,
+            ``min_bbox_size``. None uses ``DEFAULT_TEST_CFG`` (k = 1000).
+        init_cfg (dict or list[dict], optional): Initialisation config.
+            Defaults to None (each stage initialises its own layers).
+    """
+
+    def __init__(self,
+                 num_classes: int = 1,
+                 in_channels: int = 256,
+                 feat_channels: int = 256,
+                 strides: Sequence[int] = (4, 8, 16, 32, 64),
+                 anchor_scale: int = 8,
+                 dilation: int = 3,
+                 target_stds: Sequence[Sequence[float]] = (
+                     (0.1, 0.1, 0.5, 0.5), (0.05, 0.05, 0.1, 0.1)),
+                 loss_iou: ConfigType = dict(
+                     type='IoULoss', mode='linear', loss_weight=10.0),
+                 loss_obj: ConfigType = dict(
+                     type='FocalLoss',
+                     use_sigmoid=True,
+                     gamma=2.0,
+                     alpha=0.25,
+                     loss_weight=1.0),
+                 loss_giou: ConfigType = dict(
+                     type='GIoULoss', loss_weight=10.0),
+                 obj_prior_prob: float = 0.01,
+                 train_cfg: Optional[Union[List[ConfigType],
+                                           ConfigType]] = None,
+                 test_cfg: OptConfigType = None,
+                 init_cfg: OptMultiConfig = None) -> None:
+        if len(target_stds) != 2:
+            raise ValueError('CBNetCascadeRPNHead: target_stds needs one '
+                             f'4-tuple per stage (2), got {target_stds}')
+        if not loss_obj.get('use_sigmoid', False):
+            raise ValueError(
+                'CBNetCascadeRPNHead: loss_obj must be a sigmoid loss '
+                "(use_sigmoid=True): the head has one objectness channel")
+        train_cfg = self._check_train_cfg(train_cfg)
+        test_cfg = ConfigDict(
+            copy.deepcopy(DEFAULT_TEST_CFG if test_cfg is None else test_cfg))
+        anchor_generator = dict(
+            type='AnchorGenerator',
+            scales=[anchor_scale],
+            ratios=[1.0],
+            strides=list(strides))
+
+        def stage(adapt_cfg: dict, stds: Sequence[float], **extra) -> dict:
+            return dict(
+                type='StageCascadeRPNHead',
+                in_channels=in_channels,
+                feat_channels=feat_channels,
+                # Stage 2 needs the strides too: they place its offsets.
+                anchor_generator=copy.deepcopy(anchor_generator),
+                adapt_cfg=adapt_cfg,
+                reg_decoded_bbox=True,
+                bbox_coder=dict(
+                    type='DeltaXYWHBBoxCoder',
+                    target_means=(0., 0., 0., 0.),
+                    target_stds=tuple(stds)),
+                **copy.deepcopy(extra))
+
+        stages = [
+            stage(
+                dict(type='dilation', dilation=dilation),
+                target_stds[0],
+                bridged_feature=True,
+                with_cls=False,
+                loss_bbox=loss_iou),
+            stage(
+                dict(type='offset'),
+                target_stds[1],
+                bridged_feature=False,
+                with_cls=True,
+                loss_cls=loss_obj,
+                loss_bbox=loss_giou,
+                # Focal loss is normalised by the (few) positives, so start
+                # the objectness at the focal prior (RetinaNet's p = 0.01)
+                # rather than p = 0.5: otherwise the thousands of negative
+                # anchors give a loss of ~26 that swamps the gradient.
+                init_cfg=dict(
+                    type='Normal',
+                    std=0.01,
+                    override=[
+                        dict(name='rpn_reg'),
+                        dict(
+                            type='Normal',
+                            name='rpn_cls',
+                            std=0.01,
+                            bias_prob=obj_prior_prob)
+                    ])),
+        ]
+        super().__init__(
+            num_classes=num_classes,
+            num_stages=len(stages),
+            stages=stages,
+            train_cfg=train_cfg,
+            test_cfg=test_cfg,
+            init_cfg=init_cfg)
+
+    @staticmethod
+    def _check_train_cfg(
+        train_cfg: Optional[Union[List[ConfigType], ConfigType]]
+    ) -> List[ConfigDict]:
+        """Per-stage training configs, the defaults for None.
+
+        Args:
+            train_cfg (list[dict] or dict, optional): As given to the head
+                (a detector passes its ``train_cfg.rpn``).
+
+        Returns:
+            list[ConfigDict]: One config per stage.
+        """
+        if train_cfg is None:
+            train_cfg = DEFAULT_TRAIN_CFG
+        if isinstance(train_cfg, dict):
+            raise ValueError(
+                'CBNetCascadeRPNHead: train_cfg (the detector\'s '
+                '`train_cfg.rpn`) is a single dict, as for RPNHead; it must '
+                'be a list with one dict per stage (2), or None for the '
+                'paper\'s defaults, e.g. `train_cfg=dict(rpn=None)`')
+        if len(train_cfg) != 2:
+            raise ValueError(
+                'CBNetCascadeRPNHead: train_cfg (`train_cfg.rpn`) needs one '
+                f'dict per stage (2), got {len(train_cfg)}')
+        return [ConfigDict(copy.deepcopy(cfg)) for cfg in train_cfg]

@@ -1,0 +1,3 @@
+from .cbnet_nas_fpn import CBNetNASFPN
+
+__all__ = ['CBNetNASFPN']
