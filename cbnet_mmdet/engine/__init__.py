@@ -1,0 +1,7 @@
+from .hooks import (CBNetCheckpointReportHook, CBNetNonFiniteLossHook,
+                    CBNetRNGStateHook, CBNetTeacherEMAHook)
+
+__all__ = [
+    'CBNetTeacherEMAHook', 'CBNetNonFiniteLossHook', 'CBNetRNGStateHook',
+    'CBNetCheckpointReportHook'
+]

@@ -1,0 +1,9 @@
+from .checkpoint_report_hook import CBNetCheckpointReportHook
+from .non_finite_loss_hook import CBNetNonFiniteLossHook
+from .rng_state_hook import CBNetRNGStateHook
+from .teacher_ema_hook import CBNetTeacherEMAHook
+
+__all__ = [
+    'CBNetTeacherEMAHook', 'CBNetNonFiniteLossHook', 'CBNetRNGStateHook',
+    'CBNetCheckpointReportHook'
+]

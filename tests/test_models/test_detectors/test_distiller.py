@@ -1,0 +1,196 @@
+import copy
+
+import pytest
+import torch
+from mmdet.registry import MODELS
+from mmdet.testing import demo_mm_inputs
+from mmengine.optim import build_optim_wrapper
+
+import cbnet_mmdet  # noqa: F401
+
+
+def paired_batch(same=False, seed=0):
+    """Two 6-channel demo images with masks; ``same``: clear == foggy."""
+    data = demo_mm_inputs(
+        2, [(6, 64, 96)] * 2, num_items=[3, 2], num_classes=8,
+        with_mask=True)
+    g = torch.Generator().manual_seed(seed)
+    for img in data['inputs']:
+        img.copy_(torch.randint(0, 255, img.shape, generator=g))
+        if same:
+            img[3:] = img[:3]
+    return data
+
+
+def build(cfg):
+    torch.manual_seed(0)
+    model = MODELS.build(cfg)
+    model.init_weights()
+    return model
+
+
+def loss_of(model, data):
+    data = model.data_preprocessor(copy.deepcopy(data), True)
+    return model.loss(data['inputs'], data['data_samples'])
+
+
+CASCADE = 'cascade-mask-rcnn_r50_fpn.py'
+
+
+@pytest.mark.parametrize('base,roi_head', [
+    ('mask-rcnn_r50_fpn.py', None),
+    (CASCADE, None),
+    pytest.param(
+        CASCADE,
+        'CBNetCascadeRoIHead',
+        marks=pytest.mark.skipif(
+            MODELS.get('CBNetCascadeRoIHead') is None,
+            reason='CBNetCascadeRoIHead is not in this checkout')),
+])
+def test_distill_loss_zero_for_same_model_and_input(make_distiller_cfg, base,
+                                                    roi_head):
+    model = build(make_distiller_cfg(base, roi_head))
+    model.train()
+    losses = loss_of(model, paired_batch(same=True))
+    assert 'loss_distill' in losses
+    assert abs(losses['loss_distill'].item()) < 1e-5
+    losses = loss_of(model, paired_batch(same=False))
+    assert losses['loss_distill'].item() > 1e-4
+    assert any('loss_mask' in k for k in losses)
+
+
+def test_gradients_reach_only_the_student(make_distiller_cfg):
+    model = build(make_distiller_cfg())
+    model.train()
+    assert not model.teacher.training
+    assert all(not p.requires_grad for p in model.teacher.parameters())
+    # a different teacher: the distillation gradient is not zero
+    with torch.no_grad():
+        for p in model.teacher.roi_head.mask_head.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    losses = loss_of(model, paired_batch())
+    losses['loss_distill'].backward()
+    assert all(p.grad is None for p in model.teacher.parameters())
+    mask_grad = model.student.roi_head.mask_head.conv_logits.weight.grad
+    assert mask_grad is not None and mask_grad.abs().sum() > 0
+    # (zero_init_residual zeroes the residual branches: use the shortcut)
+    backbone_grad = model.student.backbone.layer2[0].downsample[0].weight.grad
+    assert backbone_grad is not None and backbone_grad.abs().sum() > 0
+
+
+def test_teacher_sees_clear_student_sees_foggy(make_distiller_cfg):
+    """Changing only the clear half changes only the distillation loss."""
+    model = build(make_distiller_cfg())
+    model.train()
+    data = paired_batch()
+    torch.manual_seed(1)
+    base = loss_of(model, data)
+    for img in data['inputs']:
+        img[3:] = 255 - img[3:]
+    torch.manual_seed(1)
+    changed = loss_of(model, data)
+    for key in base:
+        if key == 'loss_distill':
+            assert not torch.allclose(base[key], changed[key])
+        else:
+            torch.testing.assert_close(base[key], changed[key])
+
+
+def test_predict_with_student_or_teacher(make_distiller_cfg):
+    model = build(make_distiller_cfg())
+    model.eval()
+    with torch.no_grad():
+        for p in model.teacher.rpn_head.parameters():
+            p.add_(0.1)
+    data = model.data_preprocessor(paired_batch(), False)
+    foggy = data['inputs'][:, :3]
+    with torch.no_grad():
+        for which in ('student', 'teacher'):
+            model.eval_with = which
+            out = model.predict(data['inputs'], data['data_samples'])
+            ref = getattr(model, which).predict(foggy,
+                                                data['data_samples'])
+            torch.testing.assert_close(out[0].pred_instances.bboxes,
+                                       ref[0].pred_instances.bboxes)
+            # a plain 3-channel image works too
+            out3 = model.predict(foggy, data['data_samples'])
+            torch.testing.assert_close(out3[0].pred_instances.scores,
+                                       ref[0].pred_instances.scores)
+            feats = model.extract_feat(data['inputs'])
+            torch.testing.assert_close(
+                feats[0], getattr(model, which).extract_feat(foggy)[0])
+
+
+def test_state_dict_holds_teacher_and_plain_checkpoints_load_to_both(
+        make_distiller_cfg):
+    model = build(make_distiller_cfg())
+    keys = model.state_dict().keys()
+    assert any(k.startswith('teacher.') for k in keys)
+    plain = MODELS.build(make_distiller_cfg()['detector'])
+    plain_state = {k: v + 1 if v.is_floating_point() else v
+                   for k, v in plain.state_dict().items()}
+    model.load_state_dict(plain_state)
+    name = 'roi_head.mask_head.conv_logits.weight'
+    torch.testing.assert_close(model.student.state_dict()[name],
+                               plain_state[name])
+    torch.testing.assert_close(model.teacher.state_dict()[name],
+                               plain_state[name])
+
+
+def test_bad_config_and_input(make_distiller_cfg):
+    cfg = make_distiller_cfg()
+    cfg['detector']['roi_head'].pop('mask_head')
+    cfg['detector']['roi_head'].pop('mask_roi_extractor')
+    with pytest.raises(ValueError, match='mask head'):
+        MODELS.build(cfg)
+    with pytest.raises(ValueError, match='eval_with'):
+        MODELS.build(make_distiller_cfg(eval_with='ema'))
+    model = build(make_distiller_cfg())
+    data = demo_mm_inputs(1, [(3, 64, 96)], num_classes=8, with_mask=True)
+    data = model.data_preprocessor(data, True)
+    with pytest.raises(ValueError, match='paired inputs'):
+        model.loss(data['inputs'], data['data_samples'])
+
+
+def test_ddp_one_process(make_distiller_cfg, monkeypatch):
+    """DDP (gloo, 1 process): teacher excluded from gradient sync."""
+    import torch.distributed as dist
+    from mmengine.model import MMDistributedDataParallel
+    monkeypatch.setenv('MASTER_ADDR', '127.0.0.1')
+    monkeypatch.setenv('MASTER_PORT', '29571')
+    dist.init_process_group('gloo', rank=0, world_size=1)
+    try:
+        model = build(make_distiller_cfg())
+        teacher0 = copy.deepcopy(model.teacher.state_dict())
+        ddp = MMDistributedDataParallel(
+            module=model, find_unused_parameters=False)
+        # the parameters DDP's reducer all-reduces gradients for
+        synced = {id(p) for p in ddp._build_params_for_reducer()[0]}
+        assert synced == {
+            id(p)
+            for p in model.student.parameters() if p.requires_grad
+        }
+        assert not synced & {id(p) for p in model.teacher.parameters()}
+        optim = build_optim_wrapper(
+            ddp, dict(optimizer=dict(type='SGD', lr=0.01)))
+        for step in range(2):
+            log = ddp.train_step(paired_batch(seed=step), optim)
+            assert 'loss_distill' in log
+        assert all(p.grad is None for p in model.teacher.parameters())
+        for key, value in model.teacher.state_dict().items():
+            assert torch.equal(value, teacher0[key]), key
+    finally:
+        dist.destroy_process_group()
+
+
+def test_images_without_objects(make_distiller_cfg):
+    """No ground truth -> no positive RoI -> loss_distill is 0, backward
+    still works."""
+    model = build(make_distiller_cfg())
+    model.train()
+    data = demo_mm_inputs(
+        2, [(6, 64, 96)] * 2, num_items=[0, 0], num_classes=8,
+        with_mask=True)
+    losses = loss_of(model, data)
+    assert losses['loss_distill'].item() == 0
+    losses['loss_distill'].backward()
