@@ -1,0 +1,3 @@
+from .metrics import CBNetInstanceMIoUMetric
+
+__all__ = ['CBNetInstanceMIoUMetric']

@@ -1,0 +1,3 @@
+from .instance_miou_metric import CBNetInstanceMIoUMetric
+
+__all__ = ['CBNetInstanceMIoUMetric']
