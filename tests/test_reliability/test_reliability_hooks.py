@@ -1,0 +1,168 @@
+"""CBNetNonFiniteLossHook and CBNetRNGStateHook on a mock runner and in a
+real (toy) training loop."""
+import io
+import math
+import random
+from unittest.mock import MagicMock
+
+import numpy as np
+import pytest
+import torch
+import torch.nn as nn
+from mmdet.registry import HOOKS
+from mmdet.structures import DetDataSample
+from mmengine.model import BaseModel
+from mmengine.runner import Runner
+
+import cbnet_mmdet  # noqa: F401
+from cbnet_mmdet.engine.hooks import (CBNetNonFiniteLossHook,
+                                      CBNetRNGStateHook)
+from cbnet_mmdet.engine.hooks.rng_state_hook import (get_rng_state,
+                                                     set_rng_state)
+
+
+def mock_runner(it=16, epoch=1):
+    runner = MagicMock()
+    runner.iter, runner.epoch = it, epoch
+    runner.model = nn.Linear(2, 2)
+    return runner
+
+
+def batch(*paths):
+    return dict(data_samples=[
+        DetDataSample(metainfo=dict(img_path=p)) for p in paths
+    ])
+
+
+def test_registered():
+    for name in ('CBNetNonFiniteLossHook', 'CBNetRNGStateHook'):
+        assert HOOKS.get(name) is not None
+
+
+@pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])
+def test_non_finite_loss_names_iteration_loss_and_images(bad):
+    hook = CBNetNonFiniteLossHook()
+    outputs = dict(loss=torch.tensor(bad), s2_loss_mask=torch.tensor(bad),
+                   s0_loss_cls=torch.tensor(0.3), acc=torch.tensor(50.))
+    with pytest.raises(FloatingPointError) as err:
+        hook.after_train_iter(mock_runner(), 3, batch('a.png', 'b.png'),
+                              outputs)
+    msg = str(err.value)
+    assert 'iteration 17 (epoch 2, batch 3)' in msg
+    assert f's2_loss_mask={bad}' in msg and f'loss={bad}' in msg
+    assert 's0_loss_cls' not in msg
+    assert 'a.png, b.png' in msg
+
+
+def test_finite_losses_and_parameters_pass():
+    hook = CBNetNonFiniteLossHook(param_interval=1)
+    hook.after_train_iter(mock_runner(), 0, batch('a.png'),
+                          dict(loss=torch.tensor(1.), n=torch.tensor(3),
+                               empty=torch.zeros(0), f=2.5))
+
+
+def test_non_finite_parameter_found_on_its_interval():
+    runner = mock_runner(it=9)
+    with torch.no_grad():
+        runner.model.bias[1] = math.nan
+    ok = dict(loss=torch.tensor(1.))
+    CBNetNonFiniteLossHook(param_interval=3).after_train_iter(
+        runner, 0, None, ok)  # iteration 10: not checked
+    with pytest.raises(FloatingPointError, match=r'non-finite parameters '
+                       r'after iteration 10 .*: bias \(1 tensors\)'):
+        CBNetNonFiniteLossHook(param_interval=5).after_train_iter(
+            runner, 0, None, ok)
+    # huge but finite weights overflow the norm, which is no error
+    runner.model = nn.Linear(2, 2)
+    with torch.no_grad():
+        runner.model.weight.fill_(3e38)
+    assert not CBNetNonFiniteLossHook.non_finite_parameters(runner.model)
+
+
+def test_non_finite_hook_rejects_bad_interval():
+    with pytest.raises(ValueError, match='param_interval'):
+        CBNetNonFiniteLossHook(param_interval=-1)
+
+
+class NaNAtIterModel(BaseModel):
+    """Toy regression whose loss is NaN at one iteration."""
+
+    def __init__(self, nan_at):
+        super().__init__()
+        self.fc = nn.Linear(2, 1)
+        self.nan_at, self.calls = nan_at, 0
+
+    def forward(self, inputs, data_samples=None, mode='loss'):
+        self.calls += 1
+        loss = (self.fc(torch.stack(inputs)) ** 2).mean()
+        if self.calls == self.nan_at:
+            loss = loss * math.nan
+        return dict(loss_toy=loss)
+
+
+def test_training_stops_at_nan_without_saving_it(tmp_path):
+    runner = Runner(
+        model=NaNAtIterModel(nan_at=3),
+        work_dir=str(tmp_path),
+        train_dataloader=dict(
+            dataset=[dict(inputs=torch.ones(2))] * 4,
+            sampler=dict(type='DefaultSampler', shuffle=False),
+            collate_fn=dict(type='pseudo_collate'),
+            batch_size=1),
+        optim_wrapper=dict(optimizer=dict(type='SGD', lr=0.1)),
+        train_cfg=dict(by_epoch=False, max_iters=4),
+        default_hooks=dict(checkpoint=dict(
+            type='CheckpointHook', interval=1, by_epoch=False)),
+        custom_hooks=[dict(type='CBNetNonFiniteLossHook')],
+        default_scope='mmdet')
+    with pytest.raises(FloatingPointError,
+                       match=r'iteration 3 .*loss_toy=nan'):
+        runner.train()
+    saved = sorted(p.name for p in tmp_path.glob('iter_*.pth'))
+    assert saved == ['iter_1.pth', 'iter_2.pth']
+
+
+def test_rng_state_round_trip_and_weights_only_load():
+    random.seed(1), np.random.seed(1), torch.manual_seed(1)
+    state = get_rng_state()
+    expected = (random.random(), np.random.rand(), torch.rand(1))
+    buf = io.BytesIO()
+    torch.save(dict(rng_state=[state]), buf)
+    buf.seek(0)
+    loaded = torch.load(buf)  # weights_only=True by default
+    random.seed(2), np.random.seed(2), torch.manual_seed(2)
+    set_rng_state(loaded['rng_state'][0])
+    assert (random.random(), np.random.rand()) == expected[:2]
+    assert torch.equal(torch.rand(1), expected[2])
+
+
+def test_rng_hook_restores_only_on_resume():
+    hook = CBNetRNGStateHook()
+    checkpoint = {}
+    torch.manual_seed(5)
+    hook.before_save_checkpoint(mock_runner(), checkpoint)
+    after_save = torch.rand(3)
+    # load_from (iteration 0): nothing restored
+    hook.after_load_checkpoint(mock_runner(), checkpoint)
+    torch.manual_seed(6)
+    hook.before_train(mock_runner(it=0))
+    assert not torch.equal(torch.rand(3), after_save)
+    # resume: the generators continue where the checkpoint left them
+    hook.after_load_checkpoint(mock_runner(), checkpoint)
+    torch.manual_seed(6)
+    runner = mock_runner(it=8)
+    hook.before_train(runner)
+    assert torch.equal(torch.rand(3), after_save)
+    runner.logger.info.assert_called_once()
+
+
+@pytest.mark.parametrize('saved', [None, 'two_ranks'])
+def test_rng_hook_warns_when_it_cannot_restore(saved):
+    hook = CBNetRNGStateHook()
+    ckpt = {} if saved is None else dict(
+        rng_state=[get_rng_state(), get_rng_state()])
+    hook.after_load_checkpoint(mock_runner(), ckpt)
+    runner = mock_runner(it=4)
+    hook.before_train(runner)
+    warning = runner.logger.warning.call_args[0][0]
+    assert ('no RNG state' if saved is None else '2 rank(s)') in warning

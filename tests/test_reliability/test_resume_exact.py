@@ -1,0 +1,117 @@
+"""Kill a training run mid-epoch, resume it, and end bitwise like an
+uninterrupted run (model, optimizer, schedulers, iteration, EMA teacher).
+
+Exact equality on CPU: same seed, ``num_workers=0`` and
+``CBNetRNGStateHook`` restoring the random generators (without it the
+resumed run flips and samples differently and ends with other weights).
+"""
+import os.path as osp
+import subprocess
+
+import pytest
+import torch
+from mmengine.runner import Runner
+
+import cbnet_mmdet  # noqa: F401  (registers; checkpoint allow-list)
+import helper_hooks  # noqa: F401  (CBNetTestCrashHook)
+from tiny_configs import demo_cfg, subprocess_env, train_cmd, write_cfg
+
+#: 2 epochs of 2 iterations; the interrupted run dies before iteration 4
+#: (0-based 3), i.e. in the middle of epoch 2, after epoch_1.pth.
+KILL_AT = 3
+
+
+def differences(a, b, path='') -> list:
+    """Paths at which two nested checkpoint structures differ."""
+    if isinstance(a, torch.Tensor):
+        return [] if torch.equal(a, b) else [path]
+    if isinstance(a, dict):
+        if a.keys() != b.keys():
+            return [f'{path}: keys {sorted(a.keys() ^ b.keys())}']
+        return [d for k in a for d in differences(a[k], b[k], f'{path}.{k}')]
+    if isinstance(a, (list, tuple)):
+        if len(a) != len(b):
+            return [f'{path}: lengths {len(a)} != {len(b)}']
+        return [
+            d for i, (x, y) in enumerate(zip(a, b))
+            for d in differences(x, y, f'{path}[{i}]')
+        ]
+    return [] if a == b else [f'{path}: {a!r} != {b!r}']
+
+
+def assert_same_training_state(ckpt_a: str, ckpt_b: str) -> dict:
+    a, b = torch.load(ckpt_a), torch.load(ckpt_b)  # weights_only default
+    for key in ('state_dict', 'optimizer', 'param_schedulers', 'rng_state'):
+        diff = differences(a[key], b[key], key)
+        assert not diff, f'{len(diff)} differences, e.g. {diff[:5]}'
+    for key in ('epoch', 'iter', 'seed'):
+        assert a['meta'][key] == b['meta'][key], key
+    return a
+
+
+@pytest.mark.slow  # ~25 s on 2 cores (3 training processes, 9 iterations)
+def test_sigkill_mid_epoch_then_resume_is_exact(cityscapes_like_root,
+                                                tmp_path):
+    cfg_path = write_cfg(
+        demo_cfg(cityscapes_like_root), str(tmp_path / 'cfg.py'))
+    kill_cfg = demo_cfg(cityscapes_like_root, extra_imports=['helper_hooks'])
+    kill_cfg.custom_hooks.append(
+        dict(type='CBNetTestSigkillHook', at_iter=KILL_AT))
+    kill_path = write_cfg(kill_cfg, str(tmp_path / 'kill_cfg.py'))
+    full, cut = str(tmp_path / 'full'), str(tmp_path / 'cut')
+    # the uninterrupted and the interrupted run side by side (2 cores)
+    procs = [
+        subprocess.Popen(
+            cmd, env=subprocess_env(), stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True)
+        for cmd in (train_cmd(cfg_path, full), train_cmd(kill_path, cut))
+    ]
+    logs = [p.communicate(timeout=240)[0] for p in procs]
+    assert procs[0].returncode == 0, logs[0][-3000:]
+    assert procs[1].returncode == -9, logs[1][-3000:]  # SIGKILL
+    assert osp.isfile(osp.join(cut, 'epoch_1.pth'))
+    assert not osp.exists(osp.join(cut, 'epoch_2.pth'))
+    # `--resume` without a path: the latest checkpoint of the work dir
+    resumed = subprocess.run(
+        train_cmd(cfg_path, cut, '--resume'), env=subprocess_env(),
+        capture_output=True, text=True, timeout=240)
+    out = resumed.stdout + resumed.stderr
+    assert resumed.returncode == 0, out[-3000:]
+    assert 'resumed epoch: 1, iter: 2' in out
+    assert 'random generators restored' in out
+    ckpt = assert_same_training_state(
+        osp.join(full, 'epoch_2.pth'), osp.join(cut, 'epoch_2.pth'))
+    assert (ckpt['meta']['epoch'], ckpt['meta']['iter']) == (2, 4)
+
+
+def _runner(root, work_dir, name, crash=False, resume=False) -> Runner:
+    cfg = demo_cfg(root, distill=True)
+    if crash:
+        cfg.custom_hooks.append(
+            dict(type='CBNetTestCrashHook', at_iter=KILL_AT))
+    cfg.update(work_dir=str(work_dir), experiment_name=name, resume=resume)
+    return Runner.from_cfg(cfg)
+
+
+@pytest.mark.slow  # ~20 s on 2 cores
+def test_cbnet_dd_crash_then_resume_is_exact_with_ema_teacher(
+        cityscapes_like_root, tmp_path):
+    full = _runner(cityscapes_like_root, tmp_path / 'full', 'dd_full')
+    full.train()
+    cut = _runner(cityscapes_like_root, tmp_path / 'cut', 'dd_cut',
+                  crash=True)
+    with pytest.raises(KeyboardInterrupt):
+        cut.train()
+    assert cut.iter == KILL_AT
+    resumed = _runner(cityscapes_like_root, tmp_path / 'cut', 'dd_resumed',
+                      resume=True)
+    resumed.train()
+    ckpt = assert_same_training_state(
+        str(tmp_path / 'full' / 'epoch_2.pth'),
+        str(tmp_path / 'cut' / 'epoch_2.pth'))
+    teacher = {k for k in ckpt['state_dict'] if k.startswith('teacher.')}
+    assert teacher
+    # the EMA teacher is neither the student nor its initial copy
+    key = 'roi_head.mask_head.conv_logits.weight'
+    sd = ckpt['state_dict']
+    assert not torch.equal(sd['teacher.' + key], sd['student.' + key])
