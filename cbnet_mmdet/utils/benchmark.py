@@ -1,0 +1,416 @@
+"""Helpers to build detectors from configs without weights and to measure
+their cost (time, peak memory, parameters, FLOPs) on synthetic inputs.
+
+Used by ``tools/analysis_tools/benchmark.py`` and the config tests. Nothing
+is downloaded: every ``Pretrained`` initialisation and ``load_from`` is
+dropped, so the models have random weights (speed and memory do not depend
+on the weight values; detections after NMS do, slightly, see
+:func:`make_batch`).
+"""
+import copy
+import os
+import statistics
+import threading
+import time
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import torch
+from mmengine.config import Config, ConfigDict
+from torch import nn
+
+
+def strip_pretrained(cfg: Union[dict, list]) -> Union[dict, list]:
+    """Copy of a (model) config with pretrained initialisation removed.
+
+    Every ``init_cfg`` of type ``Pretrained`` (alone or in a list) becomes
+    ``None`` and every ``pretrained=...`` key is dropped, at any depth.
+
+    Args:
+        cfg (dict | list): A model config (or part of one).
+
+    Returns:
+        dict | list: The config without pretrained initialisation.
+    """
+
+    def is_pretrained(init):
+        inits = init if isinstance(init, (list, tuple)) else [init]
+        return any(
+            isinstance(i, dict) and i.get('type') == 'Pretrained'
+            for i in inits)
+
+    if isinstance(cfg, (list, tuple)):
+        return type(cfg)(strip_pretrained(v) for v in cfg)
+    if not isinstance(cfg, dict):
+        return cfg
+    out = type(cfg)() if isinstance(cfg, ConfigDict) else {}
+    for key, value in cfg.items():
+        if key == 'pretrained':
+            continue
+        if key == 'init_cfg' and is_pretrained(value):
+            out[key] = None
+            continue
+        out[key] = strip_pretrained(value)
+    return out
+
+
+def load_benchmark_cfg(path: str) -> Config:
+    """Load a detector config for a weightless build on fixed inputs.
+
+    Removes pretrained initialisation (:func:`strip_pretrained`),
+    ``load_from``, and the data preprocessor's ``batch_augments`` (YOLOX's
+    random multi-scale resize would change the measured input size).
+
+    Args:
+        path (str): Config file.
+
+    Returns:
+        Config: The loaded, modified config.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        KeyError: The config has no ``model``.
+    """
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f'config file not found: {path}')
+    cfg = Config.fromfile(path)
+    if 'model' not in cfg:
+        raise KeyError(f'config {path} has no `model`')
+    cfg.model = strip_pretrained(cfg.model)
+    cfg.model.get('data_preprocessor', {}).pop('batch_augments', None)
+    cfg.load_from = None
+    return cfg
+
+
+def build_detector(cfg: Config) -> nn.Module:
+    """Build ``cfg.model`` with random initial weights, in the MMDet scope.
+
+    Imports ``cfg.custom_imports`` and ``cbnet_mmdet`` first; MMEngine's
+    per-parameter initialisation report is not logged (the current logger
+    is set to warnings only).
+
+    Args:
+        cfg (Config): A config from :func:`load_benchmark_cfg`.
+
+    Returns:
+        nn.Module: The detector (train mode, on CPU).
+    """
+    from mmdet.registry import MODELS
+    from mmdet.utils import register_all_modules
+    from mmengine.logging import MMLogger
+    from mmengine.utils import import_modules_from_strings
+
+    import cbnet_mmdet  # noqa: F401
+    if cfg.get('custom_imports'):
+        import_modules_from_strings(**cfg.custom_imports)
+    register_all_modules(init_default_scope=True)
+    MMLogger.get_instance('cbnet_benchmark', log_level='WARNING')
+    model = MODELS.build(cfg.model)
+    model.init_weights()
+    return model
+
+
+def head_num_classes(model: nn.Module) -> List[int]:
+    """``num_classes`` of every submodule that has one (heads).
+
+    Args:
+        model (nn.Module): A detector.
+
+    Returns:
+        list[int]: One entry per head (bbox stages, mask head, dense head).
+    """
+    return [
+        m.num_classes for m in model.modules()
+        if isinstance(getattr(m, 'num_classes', None), int)
+    ]
+
+
+def make_batch(batch_size: int = 1,
+               size: Tuple[int, int] = (128, 256),
+               num_items: int = 5,
+               num_classes: int = 8,
+               with_mask: bool = True,
+               seed: int = 0) -> dict:
+    """Synthetic un-preprocessed batch (``mmdet.testing.demo_mm_inputs``).
+
+    The same seed gives the same images and ground truth, so every model is
+    measured on the same inputs (each through its own data preprocessor).
+
+    Args:
+        batch_size (int): Images in the batch.
+        size (tuple[int, int]): Image height and width, pixels.
+        num_items (int): Ground-truth instances per image.
+        num_classes (int): Labels are drawn from ``[1, num_classes)``.
+        with_mask (bool): Add bitmap instance masks.
+        seed (int): Seed of the torch RNG (the images use numpy's fixed
+            seed inside ``demo_mm_inputs``).
+
+    Returns:
+        dict: ``inputs`` (list of ``Tensor[3, H, W]`` uint8) and
+        ``data_samples`` (list of ``DetDataSample``).
+    """
+    from mmdet.testing import demo_mm_inputs
+    torch.manual_seed(seed)
+    return demo_mm_inputs(
+        batch_size=batch_size,
+        image_shapes=[(3, *size)] * batch_size,
+        num_items=[num_items] * batch_size,
+        num_classes=num_classes,
+        with_mask=with_mask)
+
+
+def preprocess(model: nn.Module, batch: dict, training: bool) -> dict:
+    """Run the model's data preprocessor on a copy of ``batch``.
+
+    Args:
+        model (nn.Module): The detector (already on ``device``).
+        batch (dict): From :func:`make_batch`.
+        training (bool): Training mode of the preprocessor (it also
+            moves the data to the model's device).
+
+    Returns:
+        dict: ``inputs`` (``Tensor[B, 3, H', W']``, padded) and
+        ``data_samples``.
+    """
+    return model.data_preprocessor(copy.deepcopy(batch), training)
+
+
+def has_mask_head(model: nn.Module) -> bool:
+    """Whether the detector predicts masks."""
+    roi_head = getattr(model, 'roi_head', None)
+    return bool(getattr(roi_head, 'with_mask', False))
+
+
+def train_step(model: nn.Module, data: dict,
+               optim_wrapper=None) -> torch.Tensor:
+    """One training step: loss forward, backward, optimiser step.
+
+    Args:
+        model (nn.Module): The detector in train mode.
+        data (dict): A preprocessed batch (:func:`preprocess`, training).
+        optim_wrapper (OptimWrapper, optional): Steps and zeroes the
+            gradients; without it only forward and backward run.
+
+    Returns:
+        Tensor: The total loss (scalar, detached).
+    """
+    losses = model(**data, mode='loss')
+    loss, _ = model.parse_losses(losses)
+    if optim_wrapper is not None:
+        optim_wrapper.update_params(loss)
+    else:
+        loss.backward()
+    return loss.detach()
+
+
+def synchronize(device: str) -> None:
+    """Wait for queued CUDA work (no-op on CPU)."""
+    if str(device).startswith('cuda'):
+        torch.cuda.synchronize(device)
+
+
+def time_calls(fn: Callable[[], object], repeats: int, warmup: int = 1,
+               device: str = 'cpu') -> List[float]:
+    """Wall-clock seconds of ``repeats`` calls of ``fn`` after ``warmup``.
+
+    Args:
+        fn (callable): The measured work.
+        repeats (int): Timed calls.
+        warmup (int): Untimed calls first.
+        device (str): Synchronised around each call when CUDA.
+
+    Returns:
+        list[float]: One duration per timed call, seconds.
+    """
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeats):
+        synchronize(device)
+        start = time.perf_counter()
+        fn()
+        synchronize(device)
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def summarize(times: Sequence[float]) -> Dict[str, float]:
+    """Median and spread of durations.
+
+    Args:
+        times (Sequence[float]): Durations, seconds.
+
+    Returns:
+        dict: ``median``, ``min``, ``max`` and ``iqr`` (interquartile
+        range; 0 with fewer than 2 values), seconds.
+    """
+    if not times:
+        raise ValueError('no durations to summarise')
+    iqr = 0.0
+    if len(times) > 1:
+        q = statistics.quantiles(times, n=4, method='inclusive')
+        iqr = q[2] - q[0]
+    return dict(
+        median=statistics.median(times),
+        min=min(times),
+        max=max(times),
+        iqr=iqr)
+
+
+def _status_mib(field: str) -> float:
+    """A ``kB`` field of ``/proc/self/status``, in MiB."""
+    with open('/proc/self/status') as f:
+        for line in f:
+            if line.startswith(field + ':'):
+                return int(line.split()[1]) / 1024
+    raise KeyError(f'{field} not in /proc/self/status')
+
+
+def _reset_hwm() -> None:
+    """Reset the kernel's resident-set high-water mark to the current RSS."""
+    with open('/proc/self/clear_refs', 'w') as f:
+        f.write('5')
+
+
+_HWM_RESETS: Optional[bool] = None
+
+
+def hwm_reset_works() -> bool:
+    """Whether this kernel resets and then raises ``VmHWM`` as documented.
+
+    Probed once per process: reset, map and touch 64 MiB of fresh pages,
+    unmap them, and check that the high-water mark rose by most of that.
+    Some kernels and sandboxes accept the reset but do not keep the mark
+    (it reads as the current RSS), which would report every peak as ~0.
+    """
+    global _HWM_RESETS
+    if _HWM_RESETS is None:
+        import mmap
+        size = 64 * 2**20
+        try:
+            _reset_hwm()
+            base = _status_mib('VmRSS')
+            buf = mmap.mmap(-1, size)
+            for off in range(0, size, mmap.PAGESIZE):
+                buf[off] = 1
+            buf.close()
+            _HWM_RESETS = _status_mib('VmHWM') - base > 0.75 * size / 2**20
+        except (OSError, KeyError):
+            _HWM_RESETS = False
+    return _HWM_RESETS
+
+
+class _RSSSampler(threading.Thread):
+    """Polls the resident set (``/proc/self/statm``) and keeps its maximum."""
+
+    def __init__(self, interval: float) -> None:
+        super().__init__(daemon=True)
+        self.interval = interval
+        self.page_mib = os.sysconf('SC_PAGE_SIZE') / 2**20
+        self.max_mib = self.rss_mib()
+        self.stop = threading.Event()
+
+    def rss_mib(self) -> float:
+        with open('/proc/self/statm') as f:
+            return int(f.read().split()[1]) * self.page_mib
+
+    def run(self) -> None:
+        while not self.stop.wait(self.interval):
+            self.max_mib = max(self.max_mib, self.rss_mib())
+
+    def finish(self) -> float:
+        self.stop.set()
+        self.join()
+        return max(self.max_mib, self.rss_mib())
+
+
+class PeakMemory:
+    """Peak memory of the work inside a ``with`` block, MiB.
+
+    CUDA: ``torch.cuda.max_memory_allocated`` above the allocation at
+    entry. CPU: the resident set's peak above the resident set at entry,
+    read from the kernel's high-water mark (``VmHWM``, reset at entry
+    through ``/proc/self/clear_refs``) where :func:`hwm_reset_works`, else
+    from a thread that polls the resident set every ``interval`` seconds
+    (``method`` says which; polling can miss peaks shorter than the
+    interval, so it is a lower bound). Run the process with
+    ``MALLOC_MMAP_THRESHOLD_=65536`` so freed tensors leave the resident
+    set (otherwise memory cached by the allocator hides new peaks).
+    ``peak`` is ``None`` where neither is available (no ``/proc``).
+
+    Args:
+        device (str): ``'cpu'`` or a CUDA device.
+        interval (float): Polling period of the fallback, seconds.
+    """
+
+    def __init__(self, device: str = 'cpu', interval: float = 0.002) -> None:
+        self.device = str(device)
+        self.interval = interval
+        self.peak: Optional[float] = None
+        self.method: Optional[str] = None
+
+    def __enter__(self) -> 'PeakMemory':
+        self._sampler = None
+        if self.device.startswith('cuda'):
+            torch.cuda.synchronize(self.device)
+            torch.cuda.reset_peak_memory_stats(self.device)
+            self._base = torch.cuda.memory_allocated(self.device)
+            self.method = 'cuda'
+            return self
+        if not os.path.exists('/proc/self/statm'):
+            return self
+        if hwm_reset_works():
+            _reset_hwm()
+            self.method = 'vmhwm'
+        else:
+            self._sampler = _RSSSampler(self.interval)
+            self._sampler.start()
+            self.method = 'sampled'
+        self._base = _status_mib('VmRSS')
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.method == 'cuda':
+            torch.cuda.synchronize(self.device)
+            self.peak = (torch.cuda.max_memory_allocated(self.device) -
+                         self._base) / 2**20
+        elif self.method == 'vmhwm':
+            self.peak = _status_mib('VmHWM') - self._base
+        elif self.method == 'sampled':
+            self.peak = self._sampler.finish() - self._base
+
+
+def count_params(model: nn.Module) -> int:
+    """Number of parameters (trainable or not)."""
+    return sum(p.numel() for p in model.parameters())
+
+
+def count_flops(model: nn.Module, data: dict) -> Dict[str, float]:
+    """GFLOPs of one inference, by PyTorch's ``FlopCounterMode``.
+
+    Counts the ATen operators that run (matrix products, convolutions,
+    attention), so data-dependent work (RPN, RoI heads on the proposals
+    actually kept, masks of the detections actually made) is included as
+    executed. mmcv's compiled operators (deformable convolution, RoIAlign)
+    and element-wise operators count as zero, so the figures are lower
+    bounds. One multiply-add counts as one FLOP (fvcore's and MMDet's
+    convention; PyTorch counts two, halved here).
+
+    Args:
+        model (nn.Module): The detector in eval mode.
+        data (dict): A preprocessed batch (:func:`preprocess`).
+
+    Returns:
+        dict: ``predict`` (the whole inference) and ``features`` (backbone
+        and neck only, independent of the weights), GFLOPs per batch.
+    """
+    from torch.utils.flop_counter import FlopCounterMode
+    out = {}
+    with torch.no_grad():
+        for part, run in (
+            ('predict', lambda: model(**data, mode='predict')),
+            ('features', lambda: model.extract_feat(data['inputs'])),
+        ):
+            with FlopCounterMode(display=False) as counter:
+                run()
+            out[part] = counter.get_total_flops() / 2 / 1e9
+    return out

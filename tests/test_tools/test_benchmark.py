@@ -1,0 +1,151 @@
+"""Smoke test of tools/analysis_tools/benchmark.py (one small model, one
+repeat, tiny input) and unit tests of its helpers."""
+import json
+import os
+import os.path as osp
+import subprocess
+import sys
+import time
+
+import pytest
+import torch
+
+import cbnet_mmdet.utils.benchmark as benchmark_utils
+from cbnet_mmdet.utils.benchmark import (PeakMemory, count_flops,
+                                         strip_pretrained, summarize)
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+SCRIPT = osp.join(ROOT, 'tools', 'analysis_tools', 'benchmark.py')
+
+
+def test_strip_pretrained_any_depth():
+    cfg = dict(
+        backbone=dict(
+            type='X', pretrained='a.pth',
+            init_cfg=dict(type='Pretrained', checkpoint='a.pth')),
+        neck=dict(init_cfg=[dict(type='Xavier'),
+                            dict(type='Pretrained', checkpoint='b')]),
+        head=dict(init_cfg=dict(type='Normal', std=0.01)))
+    out = strip_pretrained(cfg)
+    assert out['backbone'] == dict(type='X', init_cfg=None)
+    assert out['neck']['init_cfg'] is None
+    assert out['head'] == cfg['head']  # other inits untouched
+    assert cfg['backbone']['pretrained'] == 'a.pth'  # input not modified
+
+
+def test_summarize_matches_statistics():
+    s = summarize([4.0, 1.0, 3.0, 2.0, 5.0])
+    assert s == dict(median=3.0, min=1.0, max=5.0, iqr=2.0)
+    assert summarize([2.0])['iqr'] == 0.0
+    with pytest.raises(ValueError, match='no durations'):
+        summarize([])
+
+
+def test_peak_memory_sees_a_large_allocation():
+    if not osp.exists('/proc/self/statm'):
+        pytest.skip('needs Linux /proc')
+    with PeakMemory('cpu') as mem:
+        x = torch.ones(64, 2**20 // 4 * 4)  # 256 MiB of float32, touched
+        del x
+    assert mem.method in ('vmhwm', 'sampled')
+    assert mem.peak is not None
+    if mem.method == 'vmhwm':
+        assert 200 < mem.peak < 400
+    else:  # polling is a lower bound: a short peak can fall between polls
+        assert mem.peak < 400
+
+
+def test_peak_memory_sampling_fallback(monkeypatch):
+    """Where the kernel does not keep VmHWM, a polling thread measures."""
+    if not osp.exists('/proc/self/statm'):
+        pytest.skip('needs Linux /proc')
+    monkeypatch.setattr(benchmark_utils, '_HWM_RESETS', False)
+    with PeakMemory('cpu', interval=0.001) as mem:
+        x = torch.ones(64, 2**20 // 4 * 4)  # 256 MiB of float32, touched
+        time.sleep(0.05)  # held for 50 polling periods
+        del x
+    assert mem.method == 'sampled'
+    assert 200 < mem.peak < 400
+    with PeakMemory('cpu', interval=0.001) as idle:
+        pass
+    assert idle.method == 'sampled' and abs(idle.peak) < 50
+
+
+def test_hwm_probe_is_cached_and_boolean():
+    first = benchmark_utils.hwm_reset_works()
+    assert isinstance(first, bool)
+    assert benchmark_utils.hwm_reset_works() is first
+
+
+def test_count_flops_conv_reference():
+    """A 3x3 conv with 8 out channels on 3x10x10 (valid): 8*3*9*64 MACs."""
+
+    class Tiny(torch.nn.Module):
+
+        def __init__(self):
+            super().__init__()
+            self.conv = torch.nn.Conv2d(3, 8, 3)
+
+        def extract_feat(self, x):
+            return self.conv(x)
+
+        def forward(self, inputs, data_samples=None, mode='predict'):
+            return self.extract_feat(inputs)
+
+    data = dict(inputs=torch.randn(1, 3, 10, 10), data_samples=None)
+    flops = count_flops(Tiny(), data)
+    assert flops['features'] == pytest.approx(8 * 3 * 9 * 64 / 1e9)
+    assert flops['predict'] == flops['features']
+
+
+def test_bad_thread_count_is_a_clear_error():
+    out = subprocess.run(
+        [sys.executable, SCRIPT, '--threads', '0'],
+        capture_output=True, text=True, cwd=ROOT,
+        env=dict(os.environ, PYTHONPATH=ROOT))
+    assert out.returncode != 0 and '--threads must be at least 1' in (
+        out.stderr)
+
+
+def test_unknown_model_is_a_clear_error():
+    out = subprocess.run(
+        [sys.executable, SCRIPT, '--models', 'nope'],
+        capture_output=True, text=True, cwd=ROOT,
+        env=dict(os.environ, PYTHONPATH=ROOT))
+    assert out.returncode != 0 and "unknown model 'nope'" in out.stderr
+
+
+@pytest.mark.slow
+def test_benchmark_script_smoke(tmp_path):
+    """YOLOX-S, 64x128, one repeat: JSON, markdown and plot written."""
+    cmd = [
+        sys.executable, SCRIPT, '--models', 'yolox_s', '--size', '64', '128',
+        '--batch-sizes', '1', '--repeats', '1', '--warmup', '0',
+        '--scale-models', 'yolox_s', '--scale-sizes', '64x128',
+        '--scale-items', '2', '--threads', '1', '--out-dir', str(tmp_path)
+    ]
+    subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT,
+                   env=dict(os.environ, PYTHONPATH=ROOT))
+    with open(tmp_path / 'benchmark.json') as f:
+        res = json.load(f)
+    r = res['results']['yolox_s']
+    assert 8.5 < r['params_m'] < 9.5  # YOLOX-S with 8 classes: 8.9M
+    assert r['gflops']['features'] > 0
+    assert r['gflops']['predict'] >= r['gflops']['features']
+    assert set(r['inference']) == {'1'}
+    assert r['inference']['1']['seconds']['median'] > 0
+    assert r['train_step']['seconds']['median'] > 0
+    meta = res['meta']
+    assert meta['size'] == [64, 128]
+    assert meta['machine']['threads'] == 1
+    assert meta['machine']['cpu_count'] == os.cpu_count()
+    assert meta['machine']['torch'] == torch.__version__
+    assert meta['machine']['mmdet'] and meta['machine']['platform']
+    if hasattr(os, 'getloadavg'):
+        assert len(meta['load_start']) == len(meta['load_end']) == 3
+    assert '--threads 1' in meta['command'] and meta['date']
+    assert res['scaling']['items']['yolox_s'][0]['num_items'] == 2
+    md = (tmp_path / 'benchmark.md').read_text()
+    assert '| yolox_s | 8.9 |' in md
+    assert 'torch 1,' in md and 'load average' in md
+    assert (tmp_path / 'scaling.png').stat().st_size > 1000

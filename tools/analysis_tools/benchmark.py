@@ -1,0 +1,477 @@
+"""Cost of CBNet against the MMDetection baselines, in one run, on the same
+synthetic inputs.
+
+For every model (configs below, random weights, nothing downloaded):
+parameters, GFLOPs (PyTorch's ``FlopCounterMode``: whole inference and
+backbone+neck; mmcv's compiled ops count zero, see
+``cbnet_mmdet.utils.benchmark.count_flops``), inference latency at batch 1
+(median, IQR, min, max over ``--repeats`` after ``--warmup``), throughput
+at every ``--batch-sizes``, training step time (loss, backward and the
+config's own optimiser step, batch 1), and peak memory of inference and of
+a training step (CUDA: ``max_memory_allocated``; CPU: resident-set
+high-water mark above the level at the start of the call, i.e. activations
+and workspace on top of the weights). Models are measured in alternation
+(``m1, m2, ..., m1, m2, ...``) so load changes on a shared machine hit all
+alike. Then the scaling study for ``--scale-models``: inference latency and
+memory against ``--scale-sizes``, and training step time and memory
+against ``--scale-items`` ground-truth instances per image (RoI head and
+loss cost).
+
+Writes ``benchmark.json``, ``benchmark.md`` (tables, ratios to Cascade Mask
+R-CNN Swin-S) and ``scaling.png`` into ``--out-dir``; prints the markdown.
+Both record the command, the date, the machine (platform, CPU count or GPU
+name), the torch thread count, the load average at the start and at the end
+and the torch/mmcv/mmdet versions.
+
+On a shared CPU pass ``--threads 1`` and set ``OMP_NUM_THREADS=1``: with
+more threads than free cores, OpenMP threads spin waiting for each other
+and ops get several times slower (and much noisier).
+
+Usage::
+
+    # CPU default: 128x256 (reduced size; see docs/benchmarks.md)
+    python tools/analysis_tools/benchmark.py
+    # shared CPU: one thread
+    OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --threads 1
+    # GPU, fp32 then AMP, full sizes
+    python tools/analysis_tools/benchmark.py --device cuda --size 1024 2048 \\
+        --repeats 20 --warmup 5 \\
+        --scale-sizes 256x512 512x1024 1024x2048
+    python tools/analysis_tools/benchmark.py --device cuda --amp ...
+"""
+import argparse
+import json
+import os
+import os.path as osp
+import platform
+import sys
+import time
+from datetime import datetime, timezone
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+#: name -> config, relative to the repository root.
+MODELS = {
+    'cbnet_mit-b0': 'configs/cbnet/cbnet_mit-b0_nasfpn-crpn_8xb1-12e_'
+    'cityscapes.py',
+    'cbnet_mit-b2': 'configs/cbnet/cbnet_mit-b2_nasfpn-crpn_8xb1-12e_'
+    'cityscapes.py',
+    'cbnet_mit-b5': 'configs/cbnet/cbnet_mit-b5_nasfpn-crpn_8xb1-12e_'
+    'cityscapes.py',
+    'cascade-mask-rcnn_swin-s': 'configs/baselines/cascade-mask-rcnn_'
+    'swin-s-p4-w7_fpn_1x_cityscapes.py',
+    'mask-rcnn_pvt-v2-b2': 'configs/baselines/mask-rcnn_pvt-v2-b2_fpn_1x_'
+    'cityscapes.py',
+    'faster-rcnn_x101-64x4d': 'configs/baselines/faster-rcnn_x101-64x4d_'
+    'fpn_1x_cityscapes.py',
+    'yolox_s': 'configs/baselines/yolox_s_8xb8-300e_cityscapes.py',
+}
+#: the reference row of the ratios
+REFERENCE = 'cascade-mask-rcnn_swin-s'
+
+
+def parse_size(text):
+    """``'256x512'`` -> ``(256, 512)`` (height, width)."""
+    try:
+        h, w = (int(v) for v in text.lower().split('x'))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'size {text!r} is not HEIGHTxWIDTH, e.g. 512x1024')
+    return h, w
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(
+        description='CBNet vs baselines: speed, memory, FLOPs, scaling')
+    p.add_argument('--models', nargs='+', default=list(MODELS),
+                   help=f'names from {list(MODELS)} or NAME=CONFIG')
+    p.add_argument('--size', type=int, nargs=2, default=[128, 256],
+                   metavar=('H', 'W'), help='input height, width (pixels)')
+    p.add_argument('--batch-sizes', type=int, nargs='+', default=[1, 4])
+    p.add_argument('--repeats', type=int, default=2,
+                   help='timed calls per measurement')
+    p.add_argument('--warmup', type=int, default=1)
+    p.add_argument('--num-items', type=int, default=8,
+                   help='ground-truth instances per image (training)')
+    p.add_argument('--no-train', action='store_true')
+    p.add_argument('--no-flops', action='store_true')
+    p.add_argument('--scale-models', nargs='*',
+                   default=['cbnet_mit-b0', REFERENCE])
+    p.add_argument('--scale-sizes', type=parse_size, nargs='*',
+                   default=[(128, 256), (256, 512)])
+    p.add_argument('--scale-items', type=int, nargs='*',
+                   default=[1, 32])
+    p.add_argument('--device', default='cpu')
+    p.add_argument('--amp', action='store_true',
+                   help='fp16 autocast + AmpOptimWrapper (CUDA only)')
+    p.add_argument('--threads', type=int, default=None,
+                   help='torch intra-op threads (torch.set_num_threads); '
+                   'default: torch\'s own setting. On a shared CPU use 1 '
+                   '(and OMP_NUM_THREADS=1): spinning OpenMP threads make '
+                   'ops several times slower under load')
+    p.add_argument('--out-dir', default='work_dirs/benchmark')
+    args = p.parse_args(argv)
+    if args.amp and not args.device.startswith('cuda'):
+        p.error('--amp needs a CUDA --device')
+    if args.threads is not None and args.threads < 1:
+        p.error('--threads must be at least 1')
+    configs = {}
+    for item in args.models:
+        name, _, path = item.partition('=')
+        if not path:
+            if name not in MODELS:
+                p.error(f'unknown model {name!r}; known: {list(MODELS)} '
+                        f'(or pass NAME=CONFIG)')
+            path = osp.join(ROOT, MODELS[name])
+        if not osp.isfile(path):
+            p.error(f'config of {name!r} not found: {path}')
+        configs[name] = path
+    args.configs = configs
+    args.scale_models = [m for m in args.scale_models if m in configs]
+    return args
+
+
+class Bench:
+    """The built models and their measurement calls."""
+
+    def __init__(self, args):
+        import torch
+
+        from cbnet_mmdet.utils import benchmark as B
+        self.B, self.torch, self.args = B, torch, args
+        self.device = args.device
+        self.models, self.optims = {}, {}
+        for name, path in args.configs.items():
+            cfg = B.load_benchmark_cfg(path)
+            model = B.build_detector(cfg).to(self.device)
+            self.models[name] = model
+            self.optims[name] = cfg.get('optim_wrapper')
+            print(f'built {name}', file=sys.stderr)
+
+    def autocast(self):
+        torch = self.torch
+        return torch.autocast('cuda', dtype=torch.float16,
+                              enabled=self.args.amp)
+
+    def batch(self, name, size, batch_size=1, num_items=None):
+        model = self.models[name]
+        return self.B.make_batch(
+            batch_size, tuple(size),
+            num_items=num_items or self.args.num_items,
+            with_mask=self.B.has_mask_head(model))
+
+    def predict_call(self, name, raw):
+        model, torch = self.models[name], self.torch
+
+        def call():
+            model.eval()
+            with torch.no_grad(), self.autocast():
+                model(**self.B.preprocess(model, raw, False),
+                      mode='predict')
+
+        return call
+
+    def train_call(self, name, raw):
+        from mmengine.optim import build_optim_wrapper
+        model = self.models[name]
+        cfg = dict(self.optims[name] or dict(
+            type='OptimWrapper', optimizer=dict(type='SGD', lr=1e-5)))
+        if self.args.amp:
+            cfg['type'] = 'AmpOptimWrapper'
+        # a tiny lr: the weights barely move between the timed steps
+        cfg['optimizer'] = dict(cfg['optimizer'], lr=1e-8)
+        wrapper = build_optim_wrapper(model, cfg)
+
+        def call():
+            model.train()
+            data = self.B.preprocess(model, raw, True)
+            with self.autocast():
+                self.B.train_step(model, data, wrapper)
+
+        return call, wrapper
+
+    def measure(self, calls, repeats, warmup):
+        """Alternate ``calls`` (name -> fn); times and peak memory."""
+        B = self.B
+        out = {n: dict(times=[], peak_mib=[]) for n in calls}
+        for _ in range(warmup):
+            for fn in calls.values():
+                fn()
+        for _ in range(repeats):
+            for name, fn in calls.items():
+                with B.PeakMemory(self.device) as mem:
+                    t = B.time_calls(fn, 1, 0, self.device)[0]
+                out[name]['times'].append(t)
+                out[name]['peak_mib'].append(mem.peak)
+        return out
+
+
+def _peak(values):
+    values = [v for v in values if v is not None]
+    return max(values) if values else None
+
+
+def run(args):
+    bench = Bench(args)
+    B, names, size = bench.B, list(bench.models), args.size
+    results = {n: dict(config=osp.relpath(args.configs[n], ROOT))
+               for n in names}
+    for n in names:
+        model = bench.models[n]
+        results[n]['params_m'] = B.count_params(model) / 1e6
+        results[n]['weights_mib'] = sum(
+            p.numel() * p.element_size() for p in model.parameters()) / 2**20
+        if not args.no_flops:
+            model.eval()
+            raw = bench.batch(n, size)
+            results[n]['gflops'] = B.count_flops(
+                model, B.preprocess(model, raw, False))
+        print(f'counted {n}', file=sys.stderr)
+    for bs in args.batch_sizes:
+        calls = {n: bench.predict_call(n, bench.batch(n, size, bs))
+                 for n in names}
+        meas = bench.measure(calls, args.repeats, args.warmup)
+        for n in names:
+            s = B.summarize(meas[n]['times'])
+            results[n].setdefault('inference', {})[str(bs)] = dict(
+                seconds=s, images_per_s=bs / s['median'],
+                peak_mib=_peak(meas[n]['peak_mib']),
+                times=meas[n]['times'])
+        print(f'inference batch {bs} done', file=sys.stderr)
+    if not args.no_train:
+        calls, wrappers = {}, {}
+        for n in names:
+            calls[n], wrappers[n] = bench.train_call(n, bench.batch(n, size))
+        meas = bench.measure(calls, args.repeats, args.warmup)
+        for n in names:
+            results[n]['train_step'] = dict(
+                seconds=B.summarize(meas[n]['times']),
+                peak_mib=_peak(meas[n]['peak_mib']),
+                times=meas[n]['times'])
+        del wrappers
+        print('training done', file=sys.stderr)
+    scaling = dict(sizes={}, items={})
+    for hw in args.scale_sizes:
+        calls = {n: bench.predict_call(n, bench.batch(n, hw))
+                 for n in args.scale_models}
+        meas = bench.measure(calls, args.repeats, args.warmup)
+        for n in args.scale_models:
+            scaling['sizes'].setdefault(n, []).append(dict(
+                size=list(hw),
+                seconds=B.summarize(meas[n]['times'])['median'],
+                peak_mib=_peak(meas[n]['peak_mib'])))
+        print(f'scaling size {hw} done', file=sys.stderr)
+    if not args.no_train:
+        for k in args.scale_items:
+            calls = {}
+            for n in args.scale_models:
+                calls[n], _ = bench.train_call(
+                    n, bench.batch(n, size, num_items=k))
+            meas = bench.measure(calls, args.repeats, args.warmup)
+            for n in args.scale_models:
+                scaling['items'].setdefault(n, []).append(dict(
+                    num_items=k,
+                    seconds=B.summarize(meas[n]['times'])['median'],
+                    peak_mib=_peak(meas[n]['peak_mib'])))
+            print(f'scaling items {k} done', file=sys.stderr)
+    return results, scaling
+
+
+def load_average():
+    """1-, 5- and 15-minute load averages, or ``None`` (no ``getloadavg``)."""
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
+
+
+def machine(args):
+    """The machine, thread count and software of the run."""
+    import mmcv
+    import mmdet
+    import torch
+    info = dict(
+        platform=platform.platform(),
+        processor=platform.processor() or platform.machine(),
+        cpu_count=os.cpu_count(),
+        threads=torch.get_num_threads(),
+        omp_num_threads=os.environ.get('OMP_NUM_THREADS'),
+        python=platform.python_version(),
+        torch=torch.__version__, mmcv=mmcv.__version__,
+        mmdet=mmdet.__version__, amp=args.amp)
+    if args.device.startswith('cuda'):
+        info['device'] = torch.cuda.get_device_name(args.device)
+    else:
+        info['device'] = (f'CPU {info["processor"]}, {info["cpu_count"]} '
+                          f'cores, {info["threads"]} torch threads')
+    return info
+
+
+def _f(v, fmt='{:.3f}'):
+    return '-' if v is None else fmt.format(v)
+
+
+def _peak_memory_method(device):
+    """How :class:`PeakMemory` measures on ``device``, in words."""
+    from cbnet_mmdet.utils.benchmark import hwm_reset_works
+    if str(device).startswith('cuda'):
+        return 'torch.cuda.max_memory_allocated above the allocation at entry'
+    if hwm_reset_works():
+        return 'resident-set high-water mark (VmHWM, reset per call)'
+    return ('resident set polled every 2 ms (this kernel does not keep '
+            'VmHWM after a reset; a lower bound)')
+
+
+def markdown(meta, results, scaling):
+    """The tables of ``benchmark.md``."""
+    ref = results.get(REFERENCE)
+    h, w = meta['size']
+    mach = meta['machine']
+
+    def load(key):
+        v = meta.get(key)
+        return '-' if not v else ' / '.join(f'{x:.2f}' for x in v)
+
+    lines = [
+        f'Input {h}x{w}, {meta["num_items"]} instances per image (training)'
+        f', {meta["repeats"]} timed repeats after {meta["warmup"]} warm-up, '
+        f'random weights.', '',
+        f'- command: `{meta["command"]}`',
+        f'- date: {meta["date"]}, wall time {_f(meta.get("wall_s"), "{:.0f}")}'
+        ' s',
+        f'- machine: {mach["device"]}; {mach["platform"]}',
+        f'- threads: torch {mach["threads"]}, OMP_NUM_THREADS='
+        f'{mach["omp_num_threads"] or "unset"}',
+        f'- load average (1 / 5 / 15 min): start {load("load_start")}, '
+        f'end {load("load_end")}',
+        f'- software: Python {mach["python"]}, torch {mach["torch"]}, mmcv '
+        f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}',
+        f'- peak memory: {meta.get("peak_memory", "-")}', '',
+        '| model | params (M) | GFLOPs infer / backbone+neck | latency b1 '
+        '(s, median [IQR]) | img/s ' +
+        ' | img/s '.join(f'b{b}' for b in meta['batch_sizes']) +
+        ' | train step b1 (s) | peak mem infer / train (MiB) '
+        '| latency / Swin-S | train / Swin-S | params / Swin-S |',
+        '|---|---|---|---|' + '---|' * len(meta['batch_sizes']) +
+        '---|---|---|---|---|'
+    ]
+
+    def ratio(r, key):
+        if ref is None:
+            return None
+        get = {
+            'lat': lambda x: x['inference']['1']['seconds']['median'],
+            'train': lambda x: x.get('train_step', {}).get(
+                'seconds', {}).get('median'),
+            'params': lambda x: x['params_m'],
+        }[key]
+        a, b = get(r), get(ref)
+        return a / b if a is not None and b else None
+
+    for name, r in results.items():
+        inf = r['inference']
+        lat = inf.get('1', next(iter(inf.values())))['seconds']
+        fl = r.get('gflops', {})
+        tr = r.get('train_step', {})
+        lines.append(
+            f'| {name} | {r["params_m"]:.1f} | '
+            f'{_f(fl.get("predict"), "{:.1f}")} / '
+            f'{_f(fl.get("features"), "{:.1f}")} | '
+            f'{lat["median"]:.3f} [{lat["iqr"]:.3f}] | ' + ' | '.join(
+                f'{inf[str(b)]["images_per_s"]:.2f}'
+                for b in meta['batch_sizes']) +
+            f' | {_f(tr.get("seconds", {}).get("median"))} | '
+            f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
+            f'{_f(tr.get("peak_mib"), "{:.0f}")} | '
+            f'{_f(ratio(r, "lat"), "{:.2f}")} | '
+            f'{_f(ratio(r, "train"), "{:.2f}")} | '
+            f'{_f(ratio(r, "params"), "{:.2f}")} |')
+    if scaling['sizes']:
+        lines += ['', '| model | input | latency b1 (s) | peak mem (MiB) |',
+                  '|---|---|---|---|']
+        for name, rows in scaling['sizes'].items():
+            for row in rows:
+                lines.append(
+                    f'| {name} | {row["size"][0]}x{row["size"][1]} | '
+                    f'{row["seconds"]:.3f} | '
+                    f'{_f(row["peak_mib"], "{:.0f}")} |')
+    if scaling['items']:
+        lines += ['', '| model | instances / image | train step (s) | '
+                  'peak mem (MiB) |', '|---|---|---|---|']
+        for name, rows in scaling['items'].items():
+            for row in rows:
+                lines.append(
+                    f'| {name} | {row["num_items"]} | {row["seconds"]:.3f}'
+                    f' | {_f(row["peak_mib"], "{:.0f}")} |')
+    return '\n'.join(lines) + '\n'
+
+
+def plot(scaling, path):
+    """Latency vs input pixels and train step vs instances, one PNG."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for name, rows in scaling['sizes'].items():
+        axes[0].plot([r['size'][0] * r['size'][1] / 1e6 for r in rows],
+                     [r['seconds'] for r in rows], 'o-', label=name)
+    axes[0].set(xlabel='input (megapixels)', ylabel='latency b1 (s)',
+                title='inference vs input size')
+    for name, rows in scaling['items'].items():
+        axes[1].plot([r['num_items'] for r in rows],
+                     [r['seconds'] for r in rows], 'o-', label=name)
+    axes[1].set(xlabel='ground-truth instances / image',
+                ylabel='train step (s)', title='training vs instances')
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    if argv is None and os.environ.get('MALLOC_MMAP_THRESHOLD_') is None:
+        # every allocation above 64 KiB is mmap-ed, so freed tensors leave
+        # the resident set and the CPU peak memory of each call is its own
+        env = dict(os.environ, MALLOC_MMAP_THRESHOLD_='65536')
+        os.execve(sys.executable,
+                  [sys.executable, osp.abspath(__file__), *sys.argv[1:]],
+                  env)
+    if args.threads is not None:
+        import torch
+        torch.set_num_threads(args.threads)
+    start, load_start = time.time(), load_average()
+    date = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    results, scaling = run(args)
+    omp = os.environ.get('OMP_NUM_THREADS')
+    meta = dict(
+        size=args.size, batch_sizes=args.batch_sizes, repeats=args.repeats,
+        warmup=args.warmup, num_items=args.num_items,
+        machine=machine(args), date=date, load_start=load_start,
+        load_end=load_average(),
+        command=(f'OMP_NUM_THREADS={omp} ' if omp else '') +
+        'python tools/analysis_tools/benchmark.py ' +
+        ' '.join(sys.argv[1:] if argv is None else argv),
+        wall_s=time.time() - start,
+        peak_memory=_peak_memory_method(args.device))
+    os.makedirs(args.out_dir, exist_ok=True)
+    text = markdown(meta, results, scaling)
+    with open(osp.join(args.out_dir, 'benchmark.json'), 'w') as f:
+        json.dump(dict(meta=meta, results=results, scaling=scaling), f,
+                  indent=2)
+    with open(osp.join(args.out_dir, 'benchmark.md'), 'w') as f:
+        f.write(text)
+    if scaling['sizes'] or scaling['items']:
+        plot(scaling, osp.join(args.out_dir, 'scaling.png'))
+    print(text)
+    print(f'written {args.out_dir}/benchmark.{{json,md}} '
+          f'({meta["wall_s"]:.0f} s)')
+
+
+if __name__ == '__main__':
+    main()

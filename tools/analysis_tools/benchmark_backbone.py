@@ -1,0 +1,182 @@
+"""Forward time and peak memory of ``CBNetMiT``: ``ope`` vs ``cspe``.
+
+One subprocess per arch builds both models (the ``cspe`` one loads the
+``ope`` weights; its CSPE tables are then randomised so the term is not
+zero) and alternates their forwards (``ope, cspe, ope, cspe, ...`` after one
+warm-up each), so load changes on a shared machine hit both alike. Peak
+forward memory is the highest resident-set size sampled every 2 ms during a
+forward minus the size just before it (glibc is told to ``mmap`` every
+allocation above 64 KiB, so freed tensors leave the resident set at once).
+Inference mode (``torch.no_grad``, ``eval``), batch 1, random weights,
+Mish activation, CPU.
+
+Usage::
+
+    python tools/analysis_tools/benchmark_backbone.py
+        [--archs b0 b2 b5] [--size 512 1024] [--runs 3]
+        [--threads N] [--out work_dirs/benchmark_backbone.json]
+
+Prints a markdown table (times in seconds, memory in MiB, ratio cspe/ope:
+of the median times, and the median of the per-round ratios) and writes
+the figures as JSON.
+"""
+import argparse
+import json
+import os
+import os.path as osp
+import statistics
+import subprocess
+import sys
+import threading
+import time
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(
+        description='CBNetMiT forward time / peak memory, ope vs cspe')
+    parser.add_argument('--archs', nargs='+', default=['b0', 'b2', 'b5'])
+    parser.add_argument('--pos', nargs='+', default=['ope', 'cspe'])
+    parser.add_argument(
+        '--size', type=int, nargs=2, default=[512, 1024],
+        metavar=('H', 'W'), help='input height and width, pixels')
+    parser.add_argument('--runs', type=int, default=3,
+                        help='timed forwards (after one warm-up)')
+    parser.add_argument('--threads', type=int, default=None,
+                        help='torch intra-op threads (default: torch)')
+    parser.add_argument('--out', default='work_dirs/benchmark_backbone.json')
+    parser.add_argument('--worker', help=argparse.SUPPRESS)
+    return parser.parse_args(argv)
+
+
+def _rss_mib():
+    """Current resident set size of this process, MiB (Linux)."""
+    with open('/proc/self/statm') as f:
+        pages = int(f.read().split()[1])
+    return pages * os.sysconf('SC_PAGE_SIZE') / 2**20
+
+
+class PeakSampler:
+    """Samples this process's resident set size in a thread (MiB)."""
+
+    def __init__(self, interval=0.002):
+        self.interval = interval
+
+    def __enter__(self):
+        self.base = self.peak = _rss_mib()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        return self
+
+    def _run(self):
+        while not self._stop.is_set():
+            self.peak = max(self.peak, _rss_mib())
+            time.sleep(self.interval)
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self.peak = max(self.peak, _rss_mib())
+
+
+def worker(args):
+    """Measure one arch, ope and cspe alternately; prints JSON lines."""
+    import torch
+    from mmdet.registry import MODELS
+
+    import cbnet_mmdet  # noqa: F401
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    torch.manual_seed(0)
+    models = {}
+    for pos in args.pos:
+        model = MODELS.build(
+            dict(type='CBNetMiT', arch=args.worker, pos_encoding=pos,
+                 init_cfg=None))
+        model.init_weights()
+        models[pos] = model.eval()
+    if 'ope' in models and 'cspe' in models:
+        models['cspe'].load_state_dict(models['ope'].state_dict(),
+                                       strict=False)
+    for name, p in models.get('cspe', torch.nn.Module()).named_parameters():
+        if name.endswith('cspe.table'):
+            torch.nn.init.normal_(p, std=0.02)
+    x = torch.randn(1, 3, *args.size)
+    stats = {pos: dict(times_s=[], peak_forward_mib=[]) for pos in models}
+    with torch.no_grad():
+        for model in models.values():  # warm-up
+            model(x)
+        for _ in range(args.runs):
+            for pos, model in models.items():
+                with PeakSampler() as mem:
+                    start = time.perf_counter()
+                    model(x)
+                    elapsed = time.perf_counter() - start
+                stats[pos]['times_s'].append(elapsed)
+                stats[pos]['peak_forward_mib'].append(mem.peak - mem.base)
+    for pos, model in models.items():
+        print(
+            json.dumps(
+                dict(
+                    arch=args.worker,
+                    pos=pos,
+                    params_m=sum(p.numel()
+                                 for p in model.parameters()) / 1e6,
+                    time_s=statistics.median(stats[pos]['times_s']),
+                    peak_mib=max(stats[pos]['peak_forward_mib']),
+                    threads=torch.get_num_threads(),
+                    **stats[pos])))
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    if args.worker:
+        worker(args)
+        return
+    results = []
+    # every allocation above 64 KiB is mmap-ed: RSS follows live tensors
+    env = dict(os.environ, MALLOC_MMAP_THRESHOLD_='65536')
+    for arch in args.archs:
+        cmd = [
+            sys.executable, osp.abspath(__file__), '--worker', arch, '--pos',
+            *args.pos, '--size', *map(str, args.size), '--runs',
+            str(args.runs)
+        ]
+        if args.threads:
+            cmd += ['--threads', str(args.threads)]
+        out = subprocess.run(
+            cmd, check=True, capture_output=True, text=True, env=env).stdout
+        for line in out.strip().splitlines()[-len(args.pos):]:
+            results.append(json.loads(line))
+            print(f'done {arch} {results[-1]["pos"]}: '
+                  f'{results[-1]["time_s"]:.3f} s', file=sys.stderr)
+    by_key = {(r['arch'], r['pos']): r for r in results}
+    for r in results:
+        base = by_key.get((r['arch'], 'ope'))
+        r['time_ratio'] = r['time_s'] / base['time_s'] if base else None
+        r['round_time_ratio'] = statistics.median(
+            a / b for a, b in zip(r['times_s'], base['times_s'])) \
+            if base else None
+        r['mem_ratio'] = r['peak_mib'] / base['peak_mib'] if base else None
+    h, w = args.size
+    print(f'\nCBNetMiT forward, 1x3x{h}x{w}, CPU, '
+          f'{results[0]["threads"]} threads, median of {args.runs}\n')
+    print('| arch | pos | params (M) | time (s) | peak fwd mem (MiB) '
+          '| time / ope | per-round time / ope | mem / ope |')
+    print('|---|---|---|---|---|---|---|---|')
+    for r in results:
+        ratio = ('- | - | -' if r['time_ratio'] is None else
+                 f'{r["time_ratio"]:.2f} | {r["round_time_ratio"]:.2f} | '
+                 f'{r["mem_ratio"]:.2f}')
+        print(f'| {r["arch"]} | {r["pos"]} | {r["params_m"]:.2f} | '
+              f'{r["time_s"]:.3f} | {r["peak_mib"]:.0f} | {ratio} |')
+    if args.out:
+        os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
+        with open(args.out, 'w') as f:
+            json.dump(dict(size=args.size, runs=args.runs, results=results),
+                      f, indent=2)
+        print(f'\nwritten {args.out}')
+
+
+if __name__ == '__main__':
+    main()
