@@ -1,0 +1,20 @@
+# MMDetection's runtime (hooks, logging, visualiser). The plugin import
+# (`custom_imports`) comes with the dataset bases in _base_/datasets/.
+_base_ = 'mmdet::_base_/default_runtime.py'
+
+# default_hooks rather than custom_hooks: a child config that sets its own
+# custom_hooks (CBNet-DD's teacher hook) keeps these (docs/reliability.md)
+default_hooks = dict(
+    # keep the best segm checkpoint and the last 3 epochs
+    checkpoint=dict(
+        type='CheckpointHook', interval=1, max_keep_ckpts=3,
+        save_best='coco/segm_mAP', rule='greater'),
+    logger=dict(type='LoggerHook', interval=50),
+    # identical BN statistics on every rank in multi-process training
+    sync_buffers=dict(type='SyncBuffersHook'),
+    # RNG states in the checkpoint, so --resume continues bit for bit
+    rng_state=dict(type='CBNetRNGStateHook'),
+    # stop at the first NaN/Inf loss, naming iteration, loss and images
+    non_finite=dict(type='CBNetNonFiniteLossHook'),
+    # log what a load_from/resume checkpoint did not fill
+    checkpoint_report=dict(type='CBNetCheckpointReportHook'))

@@ -1,0 +1,9 @@
+# CBNet with MiT-B2 (Table 1 of the paper compares the sizes).
+_base_ = './cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py'
+
+model = dict(
+    backbone=dict(
+        arch='b2',
+        init_cfg=dict(type='Pretrained',
+                      checkpoint='checkpoints/mit_b2.pth')),
+    neck=dict(in_channels=[64, 128, 320, 512]))  # MiT-B2 stage widths
