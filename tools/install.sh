@@ -100,8 +100,9 @@ else
   start=$SECONDS
   while kill -0 "$pid" 2>/dev/null; do
     sleep 30
-    n=$(grep -cE '^(gcc|g\+\+|c\+\+|x86_64-linux-gnu-g\+\+|/usr/bin/g\+\+|.*nvcc).* -c ' "$log" || true)
-    say "  mmcv build: $((SECONDS - start)) s, $n sources compiled"
+    # ninja prints "[k/N] c++ ..." per source (pip -v indents it)
+    n=$(grep -oE '^[[:space:]]*\[[0-9]+/[0-9]+\]' "$log" | tail -n 1 | tr -d ' []' || true)
+    say "  mmcv build: $((SECONDS - start)) s, ${n:-0} sources compiled"
   done
   if ! wait "$pid"; then
     tail -n 40 "$log"
