@@ -23,11 +23,13 @@ class CSPESpatialReductionAttention(SpatialReductionAttention):
 
     With ``cspe_cfg=None`` this is exactly MMDetection's (and
     mmsegmentation's) MiT attention. Otherwise the term
-    ``q_i . r_ij / sqrt(d)`` of formula (1) is passed to
-    ``nn.MultiheadAttention`` as an additive float ``attn_mask``; the query
-    projection ``x W^Q`` is recomputed for it from ``in_proj_weight`` (one
-    extra ``N x C x C`` matmul, kept so the parameter layout stays that of
-    the pretrained checkpoints).
+    ``q_i . r_ij / sqrt(d)`` of formula (1) is added to the logits: the
+    projections are computed once from the ``nn.MultiheadAttention``'s own
+    ``in_proj_weight`` / ``out_proj`` (so the parameter layout stays that of
+    the pretrained checkpoints), the CSPE term from the projected queries,
+    and ``F.scaled_dot_product_attention`` attends with it as a float mask.
+    This is ``nn.MultiheadAttention(..., attn_mask=term)`` without its
+    second query projection (one ``N x C x C`` matmul per block).
 
     Args:
         embed_dims (int): Channels ``C``.
@@ -81,20 +83,22 @@ class CSPESpatialReductionAttention(SpatialReductionAttention):
         else:
             x_kv, kv_shape = x, tuple(hw_shape)
         batch, num_q, channels = x.shape
-        heads = self.num_heads
+        heads, num_k = self.num_heads, x_kv.shape[1]
         mha = self.attn
-        bias = mha.in_proj_bias
-        q = F.linear(x, mha.in_proj_weight[:channels],
+        weight, bias = mha.in_proj_weight, mha.in_proj_bias
+        q = F.linear(x, weight[:channels],
                      None if bias is None else bias[:channels])
-        q = q.view(batch, num_q, heads, channels // heads).transpose(1, 2)
+        kv = F.linear(x_kv, weight[channels:],
+                      None if bias is None else bias[channels:])
+        # [B, N, C] -> [B, heads, N, d]
+        q = q.view(batch, num_q, heads, -1).transpose(1, 2)
+        k, v = kv.view(batch, num_k, 2, heads, -1).permute(2, 0, 3, 1, 4)
         pos = self.cspe(q, hw_shape, kv_shape, self.sr_ratio)
-        pos = pos.reshape(batch * heads, num_q, x_kv.shape[1])
-        out = mha(
-            query=x.transpose(0, 1),
-            key=x_kv.transpose(0, 1),
-            value=x_kv.transpose(0, 1),
-            attn_mask=pos,
-            need_weights=False)[0].transpose(0, 1)
+        out = F.scaled_dot_product_attention(
+            q, k, v, attn_mask=pos,
+            dropout_p=mha.dropout if self.training else 0.)
+        out = out.transpose(1, 2).reshape(batch, num_q, channels)
+        out = mha.out_proj(out)
         return identity + self.dropout_layer(self.proj_drop(out))
 
 
