@@ -111,6 +111,7 @@ def test_headline_config_is_the_papers_recipe():
     assert cfg.train_cfg.max_epochs == 12
     opt = cfg.optim_wrapper.optimizer
     assert (opt.type, opt.lr, opt.weight_decay) == ('AdamW', 6e-5, 0.01)
+    assert opt.foreach  # batched update (speed only, same arithmetic)
     assert [s.type for s in cfg.param_scheduler] == ['LinearLR', 'PolyLR']
     assert cfg.param_scheduler[1].end == 12
     # 12 real epochs (no RepeatDataset x8), 8 classes, AP + mIoU
@@ -120,6 +121,31 @@ def test_headline_config_is_the_papers_recipe():
     metrics = {e.type for e in cfg.val_evaluator}
     assert metrics == {'CocoMetric', 'CBNetInstanceMIoUMetric'}
     assert cfg.custom_imports.imports == ['cbnet_mmdet']
+
+
+def test_no_weight_decay_on_norms_and_cspe_tables():
+    """SegFormer's recipe: AdamW decays weights, not norms or the CSPE
+    position tables (the paramwise keys must match real parameter names)."""
+    from mmengine.optim import build_optim_wrapper
+    cfg = Config.fromfile(
+        osp.join(ROOT, 'configs', 'cbnet',
+                 'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes.py'))
+    init_default_scope('mmdet')
+    model = MODELS.build(_for_cpu_test(cfg.model))
+    wrapper = build_optim_wrapper(model, cfg.optim_wrapper)
+    decay = {}
+    for group in wrapper.optimizer.param_groups:
+        for p in group['params']:
+            decay[id(p)] = group['weight_decay']
+    names = dict(model.named_parameters())
+    tables = [n for n in names if n.endswith('cspe.table')]
+    assert len(tables) == 8  # one per MiT-B0 block: depths 2, 2, 2, 2
+    for name in tables:
+        assert decay[id(names[name])] == 0.0, name
+    norm = 'backbone.layers.0.1.0.norm1.weight'
+    assert decay[id(names[norm])] == 0.0
+    conv = 'backbone.layers.0.0.projection.weight'
+    assert decay[id(names[conv])] == cfg.optim_wrapper.optimizer.weight_decay
 
 
 def test_ablation_rows_switch_the_loss_parts():

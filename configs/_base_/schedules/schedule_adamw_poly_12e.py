@@ -19,12 +19,17 @@ param_scheduler = [
 
 optim_wrapper = dict(
     type='OptimWrapper',
+    # foreach: one batched update over all parameter tensors instead of a
+    # Python loop over them (torch's default on CUDA, not on CPU); same
+    # update, 22-30% less optimiser time on CPU (docs/benchmarks.md)
     optimizer=dict(
-        type='AdamW', lr=6e-5, betas=(0.9, 0.999), weight_decay=0.01),
-    # SegFormer: no weight decay on norms and position tables
+        type='AdamW', lr=6e-5, betas=(0.9, 0.999), weight_decay=0.01,
+        foreach=True),
+    # SegFormer: no weight decay on norms and position tables (CSPE's
+    # relative-position tables are `backbone...attn.cspe.table`)
     paramwise_cfg=dict(
         norm_decay_mult=0.0,
-        custom_keys={'rel_pos': dict(decay_mult=0.0)}),
+        custom_keys={'cspe.table': dict(decay_mult=0.0)}),
     clip_grad=dict(max_norm=35, norm_type=2))
 
 # lr 6e-5 is for 8 images per iteration (SegFormer: 8 GPUs x 1); run
