@@ -271,6 +271,53 @@ def _reset_hwm() -> None:
         f.write('5')
 
 
+#: glibc ``mallopt`` parameters
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: the ceiling of glibc's dynamic mmap threshold on 64-bit (and twice it
+#: for the trim threshold): where a long-running PyTorch process settles
+STEADY_MMAP_THRESHOLD = 32 * 2**20
+#: while a peak is measured, every allocation above this is ``mmap``-ed
+MEASURE_MMAP_THRESHOLD = 64 * 2**10
+_LIBC = None
+
+
+def _glibc():
+    """glibc through ctypes, or ``None`` (musl, macOS, Windows)."""
+    global _LIBC
+    if _LIBC is None:
+        import ctypes
+        try:
+            lib = ctypes.CDLL(None)
+            lib.mallopt, lib.malloc_trim  # noqa: B018 (glibc only)
+            _LIBC = lib
+        except (OSError, AttributeError):
+            _LIBC = False
+    return _LIBC or None
+
+
+def set_malloc_thresholds(mmap_threshold: int = STEADY_MMAP_THRESHOLD
+                          ) -> bool:
+    """Fix glibc's mmap threshold (and the trim threshold at twice it).
+
+    By default glibc raises its mmap threshold as large blocks are freed,
+    up to :data:`STEADY_MMAP_THRESHOLD`, after which freed tensor memory is
+    reused from the heap without page faults. :class:`PeakMemory` lowers
+    the threshold for the measured block (so freed tensors leave the
+    resident set) and restores this steady value afterwards; timing code
+    calls this once at start so that every timed call, before or after a
+    memory measurement, sees the same allocator.
+
+    Returns:
+        bool: False where the C library is not glibc (nothing changed).
+    """
+    libc = _glibc()
+    if libc is None:
+        return False
+    libc.mallopt(_M_MMAP_THRESHOLD, int(mmap_threshold))
+    libc.mallopt(_M_TRIM_THRESHOLD, 2 * int(mmap_threshold))
+    return True
+
+
 _HWM_RESETS: Optional[bool] = None
 
 
@@ -332,9 +379,12 @@ class PeakMemory:
     through ``/proc/self/clear_refs``) where :func:`hwm_reset_works`, else
     from a thread that polls the resident set every ``interval`` seconds
     (``method`` says which; polling can miss peaks shorter than the
-    interval, so it is a lower bound). Run the process with
-    ``MALLOC_MMAP_THRESHOLD_=65536`` so freed tensors leave the resident
-    set (otherwise memory cached by the allocator hides new peaks).
+    interval, so it is a lower bound). On glibc, the block runs with every
+    allocation above 64 KiB ``mmap``-ed and the heap trimmed at entry, so
+    the resident set follows the live tensors (memory cached by the
+    allocator would hide new peaks); the steady thresholds
+    (:func:`set_malloc_thresholds`) are restored at exit. This changes the
+    cost of allocations inside the block: do not time the same call.
     ``peak`` is ``None`` where neither is available (no ``/proc``).
 
     Args:
@@ -358,6 +408,8 @@ class PeakMemory:
             return self
         if not os.path.exists('/proc/self/statm'):
             return self
+        if set_malloc_thresholds(MEASURE_MMAP_THRESHOLD):
+            _glibc().malloc_trim(0)
         if hwm_reset_works():
             _reset_hwm()
             self.method = 'vmhwm'
@@ -377,6 +429,8 @@ class PeakMemory:
             self.peak = _status_mib('VmHWM') - self._base
         elif self.method == 'sampled':
             self.peak = self._sampler.finish() - self._base
+        if self.method in ('vmhwm', 'sampled'):
+            set_malloc_thresholds(STEADY_MMAP_THRESHOLD)
 
 
 def count_params(model: nn.Module) -> int:

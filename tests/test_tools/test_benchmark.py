@@ -71,6 +71,21 @@ def test_peak_memory_sampling_fallback(monkeypatch):
     assert idle.method == 'sampled' and abs(idle.peak) < 50
 
 
+def test_peak_memory_is_not_hidden_by_memory_the_allocator_cached():
+    """Memory freed before the block (kept by glibc's heap at the steady
+    thresholds) must not absorb the block's allocations."""
+    if not osp.exists('/proc/self/statm') or \
+            not benchmark_utils.set_malloc_thresholds():
+        pytest.skip('needs Linux /proc and glibc')
+    chunks = [torch.ones(2**21) for _ in range(16)]  # 16 x 8 MiB, heap
+    del chunks  # freed into the heap (below the 32 MiB mmap threshold)
+    with PeakMemory('cpu') as mem:
+        chunks = [torch.ones(2**21) for _ in range(16)]
+        time.sleep(0.02)  # for the polling fallback
+        del chunks
+    assert 100 < mem.peak < 200
+
+
 def test_hwm_probe_is_cached_and_boolean():
     first = benchmark_utils.hwm_reset_works()
     assert isinstance(first, bool)
@@ -149,3 +164,23 @@ def test_benchmark_script_smoke(tmp_path):
     assert '| yolox_s | 8.9 |' in md
     assert 'torch 1,' in md and 'load average' in md
     assert (tmp_path / 'scaling.png').stat().st_size > 1000
+
+
+def test_benchmark_backbone_smoke(tmp_path):
+    """MiT-B0 ope vs cspe at 64x64, one run: times and peak memory."""
+    out = tmp_path / 'backbone.json'
+    cmd = [
+        sys.executable,
+        osp.join(ROOT, 'tools', 'analysis_tools', 'benchmark_backbone.py'),
+        '--archs', 'b0', '--size', '64', '64', '--runs', '1', '--threads',
+        '1', '--out', str(out)
+    ]
+    proc = subprocess.run(cmd, check=True, capture_output=True, text=True,
+                          cwd=ROOT, env=dict(os.environ, PYTHONPATH=ROOT))
+    res = json.loads(out.read_text())['results']
+    assert [(r['arch'], r['pos']) for r in res] == [('b0', 'ope'),
+                                                     ('b0', 'cspe')]
+    for r in res:
+        assert r['time_s'] > 0 and len(r['times_s']) == 1
+        assert r['peak_mib'] is not None and r['peak_mib'] >= 0
+    assert '| b0 | cspe |' in proc.stdout

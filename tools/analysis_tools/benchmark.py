@@ -10,7 +10,8 @@ at every ``--batch-sizes``, training step time (loss, backward and the
 config's own optimiser step, batch 1), and peak memory of inference and of
 a training step (CUDA: ``max_memory_allocated``; CPU: resident-set
 high-water mark above the level at the start of the call, i.e. activations
-and workspace on top of the weights). Models are measured in alternation
+and workspace on top of the weights; measured on one extra call, never on a
+timed one). Models are measured in alternation
 (``m1, m2, ..., m1, m2, ...``) so load changes on a shared machine hit all
 alike. Then the scaling study for ``--scale-models``: inference latency and
 memory against ``--scale-sizes``, and training step time and memory
@@ -193,7 +194,10 @@ class Bench:
         return call, wrapper
 
     def measure(self, calls, repeats, warmup):
-        """Alternate ``calls`` (name -> fn); times and peak memory."""
+        """Alternate ``calls`` (name -> fn): ``repeats`` timed rounds, then
+        one more call of each for its peak memory (measuring memory changes
+        how the allocator works, see ``PeakMemory``, so it is never timed).
+        """
         B = self.B
         out = {n: dict(times=[], peak_mib=[]) for n in calls}
         for _ in range(warmup):
@@ -201,10 +205,13 @@ class Bench:
                 fn()
         for _ in range(repeats):
             for name, fn in calls.items():
-                with B.PeakMemory(self.device) as mem:
-                    t = B.time_calls(fn, 1, 0, self.device)[0]
-                out[name]['times'].append(t)
-                out[name]['peak_mib'].append(mem.peak)
+                out[name]['times'].append(
+                    B.time_calls(fn, 1, 0, self.device)[0])
+        for name, fn in calls.items():
+            with B.PeakMemory(self.device) as mem:
+                fn()
+                B.synchronize(self.device)
+            out[name]['peak_mib'].append(mem.peak)
         return out
 
 
@@ -435,13 +442,11 @@ def plot(scaling, path):
 
 def main(argv=None):
     args = parse_args(argv)
-    if argv is None and os.environ.get('MALLOC_MMAP_THRESHOLD_') is None:
-        # every allocation above 64 KiB is mmap-ed, so freed tensors leave
-        # the resident set and the CPU peak memory of each call is its own
-        env = dict(os.environ, MALLOC_MMAP_THRESHOLD_='65536')
-        os.execve(sys.executable,
-                  [sys.executable, osp.abspath(__file__), *sys.argv[1:]],
-                  env)
+    from cbnet_mmdet.utils.benchmark import set_malloc_thresholds
+
+    # every timed call sees glibc's steady allocator, whether or not a
+    # memory measurement (which lowers the mmap threshold) came before it
+    set_malloc_thresholds()
     if args.threads is not None:
         import torch
         torch.set_num_threads(args.threads)

@@ -4,9 +4,10 @@ One subprocess per arch builds both models (the ``cspe`` one loads the
 ``ope`` weights; its CSPE tables are then randomised so the term is not
 zero) and alternates their forwards (``ope, cspe, ope, cspe, ...`` after one
 warm-up each), so load changes on a shared machine hit both alike. Peak
-forward memory is the highest resident-set size sampled every 2 ms during a
-forward minus the size just before it (glibc is told to ``mmap`` every
-allocation above 64 KiB, so freed tensors leave the resident set at once).
+forward memory comes from one more, untimed forward of each, measured by
+``cbnet_mmdet.utils.benchmark.PeakMemory`` (resident-set peak above the
+level before it, with glibc told to ``mmap`` every allocation above 64 KiB
+so that freed tensors leave the resident set at once).
 Inference mode (``torch.no_grad``, ``eval``), batch 1, random weights,
 Mish activation, CPU.
 
@@ -27,7 +28,6 @@ import os.path as osp
 import statistics
 import subprocess
 import sys
-import threading
 import time
 
 
@@ -48,43 +48,13 @@ def parse_args(argv=None):
     return parser.parse_args(argv)
 
 
-def _rss_mib():
-    """Current resident set size of this process, MiB (Linux)."""
-    with open('/proc/self/statm') as f:
-        pages = int(f.read().split()[1])
-    return pages * os.sysconf('SC_PAGE_SIZE') / 2**20
-
-
-class PeakSampler:
-    """Samples this process's resident set size in a thread (MiB)."""
-
-    def __init__(self, interval=0.002):
-        self.interval = interval
-
-    def __enter__(self):
-        self.base = self.peak = _rss_mib()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-        return self
-
-    def _run(self):
-        while not self._stop.is_set():
-            self.peak = max(self.peak, _rss_mib())
-            time.sleep(self.interval)
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join()
-        self.peak = max(self.peak, _rss_mib())
-
-
 def worker(args):
     """Measure one arch, ope and cspe alternately; prints JSON lines."""
     import torch
     from mmdet.registry import MODELS
 
     import cbnet_mmdet  # noqa: F401
+    from cbnet_mmdet.utils.benchmark import PeakMemory, set_malloc_thresholds
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -103,17 +73,19 @@ def worker(args):
             torch.nn.init.normal_(p, std=0.02)
     x = torch.randn(1, 3, *args.size)
     stats = {pos: dict(times_s=[], peak_forward_mib=[]) for pos in models}
+    set_malloc_thresholds()  # the same allocator for every timed forward
     with torch.no_grad():
         for model in models.values():  # warm-up
             model(x)
         for _ in range(args.runs):
             for pos, model in models.items():
-                with PeakSampler() as mem:
-                    start = time.perf_counter()
-                    model(x)
-                    elapsed = time.perf_counter() - start
-                stats[pos]['times_s'].append(elapsed)
-                stats[pos]['peak_forward_mib'].append(mem.peak - mem.base)
+                start = time.perf_counter()
+                model(x)
+                stats[pos]['times_s'].append(time.perf_counter() - start)
+        for pos, model in models.items():  # memory: one more, untimed
+            with PeakMemory('cpu') as mem:
+                model(x)
+            stats[pos]['peak_forward_mib'].append(mem.peak)
     for pos, model in models.items():
         print(
             json.dumps(
@@ -134,8 +106,6 @@ def main(argv=None):
         worker(args)
         return
     results = []
-    # every allocation above 64 KiB is mmap-ed: RSS follows live tensors
-    env = dict(os.environ, MALLOC_MMAP_THRESHOLD_='65536')
     for arch in args.archs:
         cmd = [
             sys.executable, osp.abspath(__file__), '--worker', arch, '--pos',
@@ -145,7 +115,7 @@ def main(argv=None):
         if args.threads:
             cmd += ['--threads', str(args.threads)]
         out = subprocess.run(
-            cmd, check=True, capture_output=True, text=True, env=env).stdout
+            cmd, check=True, capture_output=True, text=True).stdout
         for line in out.strip().splitlines()[-len(args.pos):]:
             results.append(json.loads(line))
             print(f'done {arch} {results[-1]["pos"]}: '
