@@ -60,3 +60,29 @@ def test_attention_dropout_only_in_training():
     torch.testing.assert_close(attn(x, (4, 4)), attn(x, (4, 4)))
     attn.train()
     assert not torch.allclose(attn(x, (4, 4)), attn(x, (4, 4)))
+
+
+@pytest.mark.parametrize('hw', [(5, 7), (8, 8), (1, 3)])
+def test_token_mix_ffn_matches_mmdet_mix_ffn(hw):
+    """Same function and gradients as MMDet's NCHW Mix-FFN, same keys."""
+    from mmdet.models.backbones.pvt import MixFFN
+
+    from cbnet_mmdet.models.backbones.mit_layers import TokenMixFFN
+    torch.manual_seed(0)
+    kwargs = dict(embed_dims=8, feedforward_channels=32,
+                  act_cfg=dict(type='Mish'), use_conv=True)
+    ffn, ref = TokenMixFFN(**kwargs), MixFFN(**kwargs)
+    ref.load_state_dict(ffn.state_dict())
+    assert list(ffn.state_dict()) == list(ref.state_dict())
+    x = torch.randn(2, hw[0] * hw[1], 8, requires_grad=True)
+    identity = torch.randn(2, hw[0] * hw[1], 8)
+    out, expected = ffn(x, hw), ref(x, hw)
+    torch.testing.assert_close(out, expected, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(ffn(x, hw, identity), ref(x, hw, identity),
+                               rtol=1e-5, atol=1e-5)
+    g = torch.randn_like(out)
+    grads = torch.autograd.grad((out * g).sum(), [x, *ffn.parameters()])
+    grads_ref = torch.autograd.grad((expected * g).sum(),
+                                    [x, *ref.parameters()])
+    for a, b in zip(grads, grads_ref):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
