@@ -45,6 +45,31 @@ def test_forward_outputs():
     assert agnostic.shape == (5, 1, 28, 28)
 
 
+@pytest.mark.parametrize('num_rois', [0, 7])
+def test_channels_last_matches_fcn_mask_head(num_rois):
+    """The CPU channels_last path computes FCNMaskHead's function, returns
+    contiguous NCHW logits, and passes the same gradients back."""
+    from mmdet.models.roi_heads.mask_heads import FCNMaskHead
+    torch.manual_seed(0)
+    head = build(num_convs=2, channels_last=None)
+    ref = FCNMaskHead(num_convs=2, in_channels=8, conv_out_channels=8,
+                      num_classes=3)
+    ref.load_state_dict(head.state_dict(), strict=False)
+    feats = torch.rand(num_rois, 8, 14, 14, requires_grad=True)
+    mask, edge = head(feats, return_edge=True)
+    assert mask.is_contiguous() and edge.is_contiguous()
+    expected = ref(feats)
+    torch.testing.assert_close(mask, expected, rtol=1e-5, atol=1e-5)
+    plain = build(num_convs=2, channels_last=False)
+    plain.load_state_dict(head.state_dict())
+    torch.testing.assert_close(plain(feats), expected, rtol=0, atol=0)
+    if num_rois:
+        g = torch.randn_like(mask)
+        grad, = torch.autograd.grad((mask * g).sum(), feats)
+        grad_ref, = torch.autograd.grad((expected * g).sum(), feats)
+        torch.testing.assert_close(grad, grad_ref, rtol=1e-4, atol=1e-6)
+
+
 def test_edge_loss_against_scipy_contours():
     torch.manual_seed(0)
     head = build()
