@@ -73,6 +73,10 @@ def test_same_graph_as_mmdet_nasfpn_on_even_sizes():
     ref = NASFPN(MIT_B0, 16, num_outs=5, stack_times=2, init_cfg=None)
     ref.load_state_dict(ours.state_dict())
     feats = mit_like_feats(MIT_B0, (128, 192))
+    # ours runs NHWC on CPU: another oneDNN algorithm, float rounding
+    for a, b in zip(ours(feats), ref(feats)):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)
+    ours.channels_last = False  # NCHW: the very same arithmetic
     for a, b in zip(ours(feats), ref(feats)):
         torch.testing.assert_close(a, b)
 
@@ -148,3 +152,19 @@ def test_on_mit_b0_outputs(img_hw):
         (math.ceil(img_hw[0] / s), math.ceil(img_hw[1] / s))
         for s in (4, 8, 16, 32, 64)
     ]
+
+
+@pytest.mark.parametrize('img_hw', [(64, 96), (97, 75)])
+def test_channels_last_is_the_same_function(img_hw):
+    """The CPU default (channels_last cells) computes what NCHW does, and
+    hands contiguous NCHW maps to the heads (mmcv's RoIAlign and deformable
+    convolution read raw NCHW memory)."""
+    torch.manual_seed(0)
+    fast = build(stack_times=2, num_outs=6)
+    plain = build(stack_times=2, num_outs=6, channels_last=False)
+    plain.load_state_dict(fast.state_dict())
+    feats = mit_like_feats(MIT_B0, img_hw)
+    outs = fast(feats)
+    assert all(o.is_contiguous() for o in outs)
+    for a, b in zip(outs, plain(feats)):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)
