@@ -81,15 +81,21 @@ def load_benchmark_cfg(path: str) -> Config:
     return cfg
 
 
-def build_detector(cfg: Config) -> nn.Module:
+def build_detector(cfg: Config, seed: Optional[int] = 0) -> nn.Module:
     """Build ``cfg.model`` with random initial weights, in the MMDet scope.
 
     Imports ``cfg.custom_imports`` and ``cbnet_mmdet`` first; MMEngine's
     per-parameter initialisation report is not logged (the current logger
-    is set to warnings only).
+    is set to warnings only). The weights are drawn after
+    ``torch.manual_seed(seed)``, so every run measures the same model: with
+    random weights the proposals, and through them the cost of the RoI
+    heads (RoIAlign with ``sampling_ratio=0`` samples more points in larger
+    RoIs), change with the weights.
 
     Args:
         cfg (Config): A config from :func:`load_benchmark_cfg`.
+        seed (int, optional): Seed of the initial weights; ``None`` leaves
+            the global RNG alone. Defaults to 0.
 
     Returns:
         nn.Module: The detector (train mode, on CPU).
@@ -104,6 +110,8 @@ def build_detector(cfg: Config) -> nn.Module:
         import_modules_from_strings(**cfg.custom_imports)
     register_all_modules(init_default_scope=True)
     MMLogger.get_instance('cbnet_benchmark', log_level='WARNING')
+    if seed is not None:
+        torch.manual_seed(seed)
     model = MODELS.build(cfg.model)
     model.init_weights()
     return model

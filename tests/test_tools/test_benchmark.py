@@ -184,3 +184,18 @@ def test_benchmark_backbone_smoke(tmp_path):
         assert r['time_s'] > 0 and len(r['times_s']) == 1
         assert r['peak_mib'] is not None and r['peak_mib'] >= 0
     assert '| b0 | cspe |' in proc.stdout
+
+
+def test_build_detector_is_seeded():
+    """Every run measures the same random model (proposals, and so the RoI
+    heads' cost, depend on the weights)."""
+    from cbnet_mmdet.utils.benchmark import build_detector, load_benchmark_cfg
+    cfg = load_benchmark_cfg(
+        osp.join(ROOT, 'configs', 'baselines',
+                 'yolox_s_8xb8-300e_cityscapes.py'))
+    torch.manual_seed(123)
+    a = build_detector(cfg).state_dict()
+    b = build_detector(cfg).state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    c = build_detector(cfg, seed=1).state_dict()
+    assert not all(torch.equal(a[k], c[k]) for k in a)
