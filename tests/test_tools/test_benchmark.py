@@ -178,8 +178,8 @@ def test_benchmark_backbone_smoke(tmp_path):
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True,
                           cwd=ROOT, env=dict(os.environ, PYTHONPATH=ROOT))
     res = json.loads(out.read_text())['results']
-    assert [(r['arch'], r['pos']) for r in res] == [('b0', 'ope'),
-                                                     ('b0', 'cspe')]
+    pairs = [(r['arch'], r['pos']) for r in res]
+    assert pairs == [('b0', 'ope'), ('b0', 'cspe')]
     for r in res:
         assert r['time_s'] > 0 and len(r['times_s']) == 1
         assert r['peak_mib'] is not None and r['peak_mib'] >= 0
