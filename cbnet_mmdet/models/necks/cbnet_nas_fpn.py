@@ -8,6 +8,8 @@ from mmdet.registry import MODELS
 from mmdet.utils import MultiConfig, OptConfigType
 from torch import Tensor
 
+from ..utils import use_channels_last
+
 # The searched NAS-FPN cell graph (Ghiasi et al. 2019, as in MMDet's
 # ``NASFPN``) merges exactly five consecutive pyramid levels.
 NUM_GRAPH_LEVELS = 5
@@ -143,10 +145,7 @@ class CBNetNASFPN(NASFPN):
             raise ValueError(
                 f'CBNetNASFPN: input channels {got} do not match '
                 f'in_channels={self.in_channels}')
-        channels_last = self.channels_last
-        if channels_last is None:
-            channels_last = inputs[0].device.type == 'cpu'
-        if channels_last:
+        if use_channels_last(self.channels_last, inputs[0]):
             inputs = [
                 x.contiguous(memory_format=torch.channels_last)
                 for x in inputs

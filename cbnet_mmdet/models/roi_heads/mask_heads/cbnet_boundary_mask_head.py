@@ -12,6 +12,7 @@ from mmdet.utils import InstanceList, OptConfigType
 from torch import Tensor
 
 from ...losses.boundary_ops import mask_contour
+from ...utils import use_channels_last
 
 
 @MODELS.register_module()
@@ -94,10 +95,7 @@ class CBNetBoundaryMaskHead(FCNMaskHead):
             ``Tensor[N, C, 2S, 2S]`` (``C = 1`` if class-agnostic), and with
             ``return_edge`` the edge logits ``Tensor[N, 1, 2S, 2S]``.
         """
-        channels_last = self.channels_last
-        if channels_last is None:
-            channels_last = x.device.type == 'cpu'
-        if channels_last:
+        if use_channels_last(self.channels_last, x):
             x = x.contiguous(memory_format=torch.channels_last)
         for conv in self.convs:
             x = conv(x)
