@@ -248,12 +248,12 @@ def run(args):
                 peak_mib=_peak(meas[n]['peak_mib']),
                 times=meas[n]['times'])
         print(f'inference batch {bs} done', file=sys.stderr)
-    # the timed training steps move the weights (lr 1e-8, but a random
-    # model's proposal scores are near ties); inference is measured again
-    # below, so the weights are put back to measure the same model
-    initial = {n: copy.deepcopy(bench.models[n].state_dict())
-               for n in args.scale_models}
     if not args.no_train:
+        # the timed training steps move the weights (lr 1e-8, but a random
+        # model's proposal scores are near ties); the scaling study measures
+        # inference again, so its models' weights are put back afterwards
+        initial = {n: copy.deepcopy(bench.models[n].state_dict())
+                   for n in args.scale_models if args.scale_sizes}
         calls, wrappers = {}, {}
         for n in names:
             calls[n], wrappers[n] = bench.train_call(n, bench.batch(n, size))
@@ -264,10 +264,10 @@ def run(args):
                 peak_mib=_peak(meas[n]['peak_mib']),
                 times=meas[n]['times'])
         del wrappers
+        for n, state in initial.items():
+            bench.models[n].load_state_dict(state)
+        del initial
         print('training done', file=sys.stderr)
-    for n, state in initial.items():
-        bench.models[n].load_state_dict(state)
-    del initial
     scaling = dict(sizes={}, items={})
     for hw in args.scale_sizes:
         calls = {n: bench.predict_call(n, bench.batch(n, hw))
