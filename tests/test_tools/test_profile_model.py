@@ -56,11 +56,16 @@ def test_profile_cfg_options_reach_the_model(tool):
     """--cfg-options edits the config before the model is built."""
     args = tool.parse_args([
         DEMO, '--mode', 'train', '--cfg-options',
-        'optim_wrapper.optimizer.foreach=False'
+        'model.roi_head.mask_head.channels_last=False'
     ])
-    assert args.cfg_options == {'optim_wrapper.optimizer.foreach': False}
-    _, calls = tool.build(args)
+    assert args.cfg_options == {
+        'model.roi_head.mask_head.channels_last': False
+    }
+    model, calls = tool.build(args)
     assert set(calls) == {'train'}
+    assert model.roi_head.mask_head.channels_last is False
+    default, _ = tool.build(tool.parse_args([DEMO, '--mode', 'infer']))
+    assert default.roi_head.mask_head.channels_last is None
 
 
 @pytest.mark.parametrize('argv, message', [
