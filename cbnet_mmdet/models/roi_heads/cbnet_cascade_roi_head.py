@@ -29,8 +29,16 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
     their masks, ``mask_head`` is a single config (e.g.
     :class:`CBNetBoundaryMaskHead`): in training it runs on the positive RoIs
     sampled for the last stage and yields ``s{num_stages - 1}.loss_mask``
-    (and ``.loss_edge``), scaled by ``stage_loss_weights[-1]`` like MMDet's
-    per-stage mask losses; in inference it runs once on the final boxes.
+    (and ``.loss_edge``) at the weight its loss config sets; in inference
+    it runs once on the final boxes.
+
+    Mask loss weight: MMDet's cascade multiplies every loss of stage ``i``
+    by ``stage_loss_weights[i]``, mask losses included, so a mask head on
+    the last stage alone would train at ``stage_loss_weights[-1]`` (0.25 in
+    Cascade R-CNN) times its configured weight. The paper adds ``L_bound``
+    to the total at weight 1 (eq. 10), so the stage weights scale the box
+    stages only: the logged ``s{num_stages - 1}.loss_mask`` equals the
+    unscaled loss times the mask loss config's ``loss_weight``.
 
     Args:
         num_stages (int): Number of box stages (3 in the paper).
@@ -99,14 +107,43 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
             return dict(mask_preds=mask_preds, edge_preds=edge_preds)
         return dict(mask_preds=self.mask_head(mask_feats))
 
+    def loss(self, x: Tuple[Tensor], rpn_results_list: InstanceList,
+             batch_data_samples: SampleList) -> dict:
+        """Box losses of every stage and the last stage's mask losses.
+
+        :meth:`CascadeRoIHead.loss` with one change: the mask losses are
+        not multiplied by ``stage_loss_weights[-1]`` (see the class doc).
+        :meth:`mask_loss` hands them over in ``self._unweighted_losses``
+        instead of returning them to MMDet's weighting loop.
+
+        Args:
+            x (tuple[Tensor]): Multi-level features ``Tensor[B, C, H, W]``.
+            rpn_results_list (list[:obj:`InstanceData`]): Proposals.
+            batch_data_samples (list[:obj:`DetDataSample`]): Annotations.
+
+        Returns:
+            dict[str, Tensor]: ``s{i}.loss_cls``, ``s{i}.loss_bbox``,
+            ``s{i}.acc`` and ``s{num_stages - 1}.loss_mask`` (and
+            ``.loss_edge``).
+        """
+        self._unweighted_losses = dict()
+        try:
+            losses = super().loss(x, rpn_results_list, batch_data_samples)
+            losses.update(self._unweighted_losses)
+        finally:
+            del self._unweighted_losses
+        return losses
+
     def mask_loss(self, stage: int, x: Tuple[Tensor],
                   sampling_results: List[SamplingResult],
                   batch_gt_instances: InstanceList) -> dict:
         """Mask loss of the last stage; nothing for the earlier stages.
 
         :meth:`CascadeRoIHead.loss` calls this for every stage and prefixes
-        and weights whatever ``loss_mask`` holds, so earlier stages return an
-        empty ``loss_mask`` and no mask forward happens there.
+        and weights whatever ``loss_mask`` holds, so every stage returns an
+        empty ``loss_mask``; no mask forward happens before the last stage.
+        The last stage's losses go to ``self._unweighted_losses`` (set by
+        :meth:`loss`), keyed ``s{stage}.{name}``, outside the stage weight.
 
         Args:
             stage (int): Current cascade stage.
@@ -117,8 +154,9 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 ``masks``.
 
         Returns:
-            dict: ``loss_mask`` (dict of losses, empty before the last
-            stage) and, on the last stage, ``mask_preds``/``mask_targets``.
+            dict: ``loss_mask`` (an empty dict) and, on the last stage,
+            ``mask_preds``/``mask_targets`` and ``stage_loss_mask`` (the
+            losses, also recorded in ``self._unweighted_losses``).
         """
         if stage != self.num_stages - 1:
             return dict(loss_mask=dict())
@@ -133,6 +171,18 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 batch_gt_instances=batch_gt_instances,
                 rcnn_train_cfg=self.train_cfg[stage],
                 **extra))
+        stage_losses = mask_results.pop('loss_mask')
+        mask_results['stage_loss_mask'] = stage_losses
+        mask_results['loss_mask'] = dict()
+        unweighted = getattr(self, '_unweighted_losses', None)
+        if unweighted is None:
+            raise RuntimeError(
+                'CBNetCascadeRoIHead.mask_loss is called by '
+                'CBNetCascadeRoIHead.loss, which adds its losses unweighted; '
+                'call loss() rather than mask_loss() alone')
+        unweighted.update(
+            {f's{stage}.{name}': value
+             for name, value in stage_losses.items()})
         return mask_results
 
     def predict_mask(self,

@@ -32,9 +32,9 @@ def bbox_head(cls_sigmoid=False):
             target_means=[0., 0., 0., 0.],
             target_stds=[0.1, 0.1, 0.2, 0.2]),
         reg_class_agnostic=True,
-        loss_cls=dict(
-            type='CrossEntropyLoss', use_sigmoid=cls_sigmoid,
-            loss_weight=1.0),
+        # paper eq. (4) (per-class BCE) or MMDet's softmax CE
+        loss_cls=dict(type='CBNetSigmoidCrossEntropyLoss')
+        if cls_sigmoid else dict(type='CrossEntropyLoss', loss_weight=1.0),
         loss_bbox=dict(type='SmoothL1Loss', beta=1.0, loss_weight=1.0))
 
 
@@ -131,7 +131,13 @@ def test_loss_only_last_stage_has_mask():
     assert head.mask_head.conv_logits.weight.grad.abs().sum() > 0
 
 
-def test_stage_weight_applies_to_mask_loss():
+def test_stage_weight_does_not_scale_mask_loss():
+    """Paper eq. (10): L_bound enters the total at its own weight.
+
+    MMDet's cascade loop multiplies stage 2's losses by
+    ``stage_loss_weights[2]``; the mask losses must not be (the box losses
+    still are).
+    """
     head = MODELS.build(roi_head_cfg())
     feats, proposals, samples = unit_inputs()
     torch.manual_seed(1)
@@ -139,8 +145,52 @@ def test_stage_weight_applies_to_mask_loss():
     head.stage_loss_weights = [1, 0.5, 1.0]
     torch.manual_seed(1)
     scaled = head.loss(feats, copy.deepcopy(proposals), samples)
-    torch.testing.assert_close(scaled['s2.loss_mask'],
-                               4 * base['s2.loss_mask'])
+    torch.testing.assert_close(scaled['s2.loss_mask'], base['s2.loss_mask'])
+    torch.testing.assert_close(scaled['s2.loss_edge'], base['s2.loss_edge'])
+    torch.testing.assert_close(scaled['s2.loss_bbox'],
+                               4 * base['s2.loss_bbox'])
+
+
+def test_logged_mask_loss_is_the_configured_weight():
+    """A mask loss pinned to 1 logs exactly ``loss_weight`` (not 0.25)."""
+    cfg = roi_head_cfg()
+    cfg.mask_head.loss_mask.loss_weight = 3.0
+    head = MODELS.build(cfg)
+    feats, proposals, samples = unit_inputs()
+    loss_fn = head.mask_head.loss_mask
+
+    def pinned(pred, *args, **kwargs):
+        return pred.sum() * 0 + loss_fn.loss_weight
+
+    with mock.patch.object(loss_fn, 'forward', side_effect=pinned):
+        losses = head.loss(feats, proposals, samples)
+    assert losses['s2.loss_mask'].item() == pytest.approx(3.0)
+
+
+def test_mask_loss_matches_mask_head_on_last_stage_samples():
+    """``s2.loss_mask`` = the mask head's own loss on stage 2's positives."""
+    head = MODELS.build(roi_head_cfg())
+    feats, proposals, samples = unit_inputs()
+    records = []
+    original = head.mask_loss
+
+    def recording(stage, x, sampling_results, gt):
+        out = original(stage, x, sampling_results, gt)
+        records.append((stage, sampling_results, gt, out))
+        return out
+
+    with mock.patch.object(head, 'mask_loss', side_effect=recording):
+        losses = head.loss(feats, proposals, samples)
+    stage, sampling_results, gt, out = records[-1]
+    assert stage == 2
+    reference = head.mask_head.loss_and_target(
+        mask_preds=out['mask_preds'], sampling_results=sampling_results,
+        batch_gt_instances=gt, rcnn_train_cfg=head.train_cfg[2],
+        edge_preds=out['edge_preds'])['loss_mask']
+    torch.testing.assert_close(losses['s2.loss_mask'],
+                               reference['loss_mask'])
+    torch.testing.assert_close(losses['s2.loss_edge'],
+                               reference['loss_edge'])
 
 
 def test_loss_without_gt_is_finite():
@@ -196,7 +246,7 @@ def test_predict_without_detections():
 
 
 def test_plain_fcn_mask_head_and_sigmoid_cls():
-    """Works with MMDet's FCNMaskHead (no edge) and a BCE cls loss."""
+    """Works with MMDet's FCNMaskHead (no edge) and eq. (4)'s BCE."""
     mask_head = dict(
         type='FCNMaskHead', num_convs=1, in_channels=CH,
         conv_out_channels=CH, num_classes=NUM_CLASSES)
@@ -205,10 +255,12 @@ def test_plain_fcn_mask_head_and_sigmoid_cls():
     losses = head.loss(feats, copy.deepcopy(proposals), samples)
     assert 's2.loss_mask' in losses and 's2.loss_edge' not in losses
     assert all(torch.isfinite(v).all() for v in losses.values())
+    assert all(h.fc_cls.out_features == NUM_CLASSES for h in head.bbox_head)
     head.eval()
     with torch.no_grad():
         results = head.predict(feats, proposals, samples, rescale=True)
     assert results[0].masks.shape[1:] == (64, 64)
+    assert all(((r.scores >= 0) & (r.scores <= 1)).all() for r in results)
 
 
 # --------------------------------------------------------------------------
