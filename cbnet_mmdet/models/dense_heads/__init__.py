@@ -1,3 +1,4 @@
 from .cbnet_cascade_rpn_head import CBNetCascadeRPNHead
+from .cbnet_stage_cascade_rpn_head import CBNetStageCascadeRPNHead
 
-__all__ = ['CBNetCascadeRPNHead']
+__all__ = ['CBNetCascadeRPNHead', 'CBNetStageCascadeRPNHead']

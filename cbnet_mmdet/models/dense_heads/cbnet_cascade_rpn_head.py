@@ -11,7 +11,11 @@ from mmengine.config import ConfigDict
 # ground truth, without sampling; stage 2 (proposal refinement) by IoU with
 # the stage-1 boxes. Stage 2 keeps every anchor (no sampler): the sigmoid
 # focal loss down-weights the many easy negatives, which is why the paper
-# uses it ("we generate more proposals in the prior stage").
+# uses it ("we generate more proposals in the prior stage"). Its assigner
+# has an ignore band, RetinaNet's reading of a focal objective: IoU >= 0.5
+# positive, < 0.4 negative, in between ignored (MMDet's Cascade RPN uses
+# 0.7/0.7 with a sampler; without one, every near miss at IoU 0.4-0.7 would
+# be a full-weight negative). Each GT keeps its best box if IoU >= 0.3.
 DEFAULT_TRAIN_CFG = (
     dict(
         assigner=dict(
@@ -22,8 +26,8 @@ DEFAULT_TRAIN_CFG = (
     dict(
         assigner=dict(
             type='MaxIoUAssigner',
-            pos_iou_thr=0.7,
-            neg_iou_thr=0.7,
+            pos_iou_thr=0.5,
+            neg_iou_thr=0.4,
             min_pos_iou=0.3,
             ignore_iof_thr=-1),
         allowed_border=-1,
@@ -68,11 +72,12 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
     detector's ``train_cfg.rpn_proposal`` / ``test_cfg.rpn`` then set ``k``
     as ``max_per_img`` (1000 in MMDet's Faster R-CNN).
 
-    Loss normalisation: MMDet's stage head averages both losses of a stage
-    over ``number of anchors / 200`` when nothing is sampled; paper (2)
-    averages the focal loss over the ``H/4 x W/4`` positions. The two differ
-    by a constant factor (about 150 for a 4..64 pyramid), absorbed by the
-    loss weights; we keep MMDet's so its published weights stay meaningful.
+    Loss normalisation: both stages are :class:`CBNetStageCascadeRPNHead`,
+    which averages each loss over the positive anchors of the batch (the
+    focal-loss convention), so a positive weighs the same at every input
+    size. MMDet's stage head divides by ``number of anchors / 200`` when
+    nothing is sampled, which changes the weight of a positive with the
+    image size (``normalize_by_num_pos=False`` restores it).
 
     Args:
         num_classes (int): Must be 1 (class-agnostic). Defaults to 1.
@@ -96,7 +101,10 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
             ``lambda_GIoU``. Defaults to ``GIoULoss``, weight 10.
         obj_prior_prob (float): Initial objectness probability of stage 2
             (its classifier bias is set to ``-log((1 - p) / p)``, as for
-            focal-loss heads). Defaults to 0.01.
+            focal-loss heads, by ``init_weights()``). Defaults to 0.01.
+        normalize_by_num_pos (bool): Average the losses over positive
+            anchors (True) or over ``anchors / 200`` as MMDet's stage head
+            does without a sampler. Defaults to True.
         train_cfg (list[dict], optional): One training config per stage
             (assigner, optional sampler, ``allowed_border``, ``pos_weight``).
             None uses ``DEFAULT_TRAIN_CFG``.
@@ -127,6 +135,7 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
                  loss_giou: ConfigType = dict(
                      type='GIoULoss', loss_weight=10.0),
                  obj_prior_prob: float = 0.01,
+                 normalize_by_num_pos: bool = True,
                  train_cfg: Optional[Union[List[ConfigType],
                                            ConfigType]] = None,
                  test_cfg: OptConfigType = None,
@@ -149,7 +158,8 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
 
         def stage(adapt_cfg: dict, stds: Sequence[float], **extra) -> dict:
             return dict(
-                type='StageCascadeRPNHead',
+                type='CBNetStageCascadeRPNHead',
+                normalize_by_num_pos=normalize_by_num_pos,
                 in_channels=in_channels,
                 feat_channels=feat_channels,
                 # Stage 2 needs the strides too: they place its offsets.

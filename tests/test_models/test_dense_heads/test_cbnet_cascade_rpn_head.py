@@ -86,6 +86,9 @@ def test_default_objective_is_the_papers():
     assert head.test_cfg.max_per_img == 1000
     assert type(s1.assigner).__name__ == 'RegionAssigner'
     assert type(s2.assigner).__name__ == 'MaxIoUAssigner'
+    # ignore band of a focal objective (RetinaNet's 0.5 / 0.4)
+    assert (s2.assigner.pos_iou_thr, s2.assigner.neg_iou_thr) == (0.5, 0.4)
+    assert s1.normalize_by_num_pos and s2.normalize_by_num_pos
 
 
 @pytest.mark.parametrize('arg,keys', [
@@ -112,19 +115,93 @@ def test_each_weight_scales_its_loss(arg, keys):
     assert total(a, next(iter(keys))) > 0
 
 
-def test_focal_objectness_closed_form_without_gt():
-    """No ground truth: every anchor is a negative. With a constant logit b
-    the focal term is (1 - alpha) p**2 (-log(1 - p)), p = sigmoid(b), and
-    MMDet averages over anchors / 200 (no sampling)."""
+def num_anchors(img_hw):
+    """Anchors of one image on the 4..64 pyramid (one per location)."""
+    return sum(
+        math.ceil(img_hw[0] / s) * math.ceil(img_hw[1] / s) for s in STRIDES)
+
+
+def negatives_only_focal(img_hw, p, batch, normalize_by_num_pos):
+    """Closed form of the objectness loss when every anchor is negative.
+
+    The focal term of one negative is (1 - alpha) p**2 (-log(1 - p)); the
+    sum over the batch's anchors is divided by the number of positives (at
+    least 1 per image) or, MMDet's way, by anchors / 200.
+    """
+    per_anchor = 0.75 * p**2 * -torch.log1p(-p)
+    anchors = batch * num_anchors(img_hw)
+    divisor = batch if normalize_by_num_pos else anchors / 200
+    return anchors * per_anchor / divisor
+
+
+@pytest.mark.parametrize('normalize_by_num_pos', [True, False])
+def test_focal_objectness_closed_form_without_gt(normalize_by_num_pos):
+    """No ground truth: every anchor is a negative, with a constant logit."""
     img_hw = (40, 56)
-    head = build_head()
+    head = build_head(normalize_by_num_pos=normalize_by_num_pos)
     cls = head.stages[1].rpn_cls
     torch.nn.init.zeros_(cls.weight)
     torch.nn.init.constant_(cls.bias, 0.3)
     losses = head.loss(pyramid(img_hw, 2), samples(img_hw, [0, 0]))
-    p = torch.sigmoid(torch.tensor(0.3))
-    expected = 200 * 0.75 * p**2 * -torch.log1p(-p)
+    expected = negatives_only_focal(
+        img_hw, torch.sigmoid(torch.tensor(0.3)), 2, normalize_by_num_pos)
     torch.testing.assert_close(total(losses, 's1.loss_rpn_cls'), expected)
+
+
+def padded_pyramid(feats, img_hw):
+    """``feats`` zero-padded (right and bottom) to the pyramid of img_hw."""
+    out = []
+    for f, s in zip(feats, STRIDES):
+        h, w = math.ceil(img_hw[0] / s), math.ceil(img_hw[1] / s)
+        out.append(F.pad(f, (0, w - f.shape[-1], 0, h - f.shape[-2])))
+    return tuple(out)
+
+
+def fixed_objects(img_hw):
+    """Three boxes inside the top-left 96x96 pixels, on an img_hw image."""
+    data = samples(img_hw, [3])
+    data[0].gt_instances.bboxes = torch.tensor(
+        [[8., 10., 40., 50.], [30., 20., 90., 60.], [50., 52., 80., 92.]])
+    return data
+
+
+@pytest.mark.parametrize('normalize_by_num_pos', [True, False])
+def test_loss_per_positive_independent_of_image_size(normalize_by_num_pos):
+    """The same objects and features in an image twice the size.
+
+    Zero-padding the features keeps every original location's output (the
+    convolutions pad with zeros too), so the positives and their
+    predictions are the same; only negatives are added. Averaged per
+    positive, the regression losses are unchanged and the objectness grows
+    only by the new easy negatives' focal terms (tiny at the prior p=0.01);
+    MMDet's anchors / 200 factor divides them all by about 4x more.
+    """
+    small, large = (128, 128), (256, 256)
+    head = build_head(normalize_by_num_pos=normalize_by_num_pos)
+    feats = pyramid(small, 1)
+    with torch.no_grad():
+        a = head.loss(feats, fixed_objects(small))
+        b = head.loss(padded_pyramid(feats, large), fixed_objects(large))
+    assert total(a, 's0.loss_rpn_reg') > 0 and total(a, 's1.loss_rpn_reg') > 0
+    if normalize_by_num_pos:
+        for key in ('s0.loss_rpn_reg', 's1.loss_rpn_reg'):
+            torch.testing.assert_close(total(b, key), total(a, key))
+        torch.testing.assert_close(
+            total(b, 's1.loss_rpn_cls'), total(a, 's1.loss_rpn_cls'),
+            rtol=0.02, atol=0)
+    else:
+        ratio = total(a, 's0.loss_rpn_reg') / total(b, 's0.loss_rpn_reg')
+        expected = num_anchors(large) / num_anchors(small)
+        assert ratio.item() == pytest.approx(expected, rel=1e-4)
+
+
+def test_iou_loss_is_a_mean_over_positives():
+    """Stage 1 logs lambda_IoU times the mean (1 - IoU), at most 10."""
+    img_hw = (128, 128)
+    head = build_head()
+    losses = head.loss(pyramid(img_hw, 2), samples(img_hw, [3, 4]))
+    assert 0 < total(losses, 's0.loss_rpn_reg').item() <= 10.0
+    assert 0 < total(losses, 's1.loss_rpn_reg').item() <= 20.0  # 1-GIoU<=2
 
 
 @pytest.mark.parametrize('k', [1000, 25])
@@ -301,8 +378,7 @@ def test_objectness_starts_at_focal_prior(prior):
         torch.sigmoid(cls.bias), torch.full_like(cls.bias, prior))
     img_hw = (40, 56)
     losses = head.loss(pyramid(img_hw, 2), samples(img_hw, [0, 0]))
-    p = torch.tensor(prior)
     # a zero-mean weight of std 0.01 on unit features barely moves p
-    expected = 200 * 0.75 * p**2 * -torch.log1p(-p)
+    expected = negatives_only_focal(img_hw, torch.tensor(prior), 2, True)
     torch.testing.assert_close(
         total(losses, 's1.loss_rpn_cls'), expected, rtol=0.3, atol=1e-3)

@@ -1,0 +1,62 @@
+"""One stage of the CBNet Cascade RPN, its losses normalised by positives."""
+from typing import List, Tuple
+
+from mmdet.models.dense_heads import StageCascadeRPNHead
+from mmdet.registry import MODELS
+
+
+@MODELS.register_module()
+class CBNetStageCascadeRPNHead(StageCascadeRPNHead):
+    """MMDet's :class:`StageCascadeRPNHead`, losses averaged per positive.
+
+    Without a sampler (every anchor of every level is trained, as the focal
+    objectness of paper (3) wants), MMDet's stage head divides both losses
+    by ``number of anchors / 200`` (a constant of guided anchoring). That
+    makes the weight of one positive depend on the image size: about 30
+    anchors' worth per image at 192x384 but 870 at 1024x2048 for a 4..64
+    pyramid, so ``lambda_IoU``/``lambda_GIoU``/``lambda_obj`` mean different
+    things at different input sizes, and the IoU loss (in [0, 1] per box)
+    logs values above 1.
+
+    With ``normalize_by_num_pos=True`` (default) the losses are divided by
+    the number of positive anchors in the batch (at least 1 per image), the
+    convention of focal-loss heads (RetinaNet, FCOS): the regression losses
+    are then the mean ``1 - IoU`` / ``1 - GIoU`` over positives, and the
+    loss per positive does not change when the same objects sit in a larger
+    image. ``False`` keeps MMDet's factor.
+
+    With a sampler in ``train_cfg`` the sampler's average factor is used
+    either way, as in MMDet.
+
+    Args:
+        normalize_by_num_pos (bool): Average the losses over positive
+            anchors instead of ``anchors / 200``. Defaults to True.
+        **kwargs: Arguments of :class:`StageCascadeRPNHead`.
+    """
+
+    def __init__(self, *args, normalize_by_num_pos: bool = True,
+                 **kwargs) -> None:
+        self.normalize_by_num_pos = normalize_by_num_pos
+        super().__init__(*args, **kwargs)
+
+    def get_targets(self, *args, **kwargs) -> Tuple:
+        """Targets of :class:`StageCascadeRPNHead`, avg factor = positives.
+
+        The targets' ``avg_factor`` is already the sum over images of the
+        positives (MMDet's ``PseudoSampler`` counts at least one per image);
+        :meth:`StageCascadeRPNHead.loss_by_feat` replaces it with
+        ``anchors / 200`` when the sampling results say their factor counts
+        positives only. Marking them as counting negatives too (the flag is
+        read there and nowhere else; the factor itself is unchanged) keeps
+        the positives' count.
+
+        Returns:
+            tuple: As :meth:`StageCascadeRPNHead.get_targets`.
+        """
+        targets = super().get_targets(*args, **kwargs)
+        if self.normalize_by_num_pos and targets is not None \
+                and kwargs.get('return_sampling_results', False):
+            sampling_results: List = targets[-1]
+            for result in sampling_results:
+                result.avg_factor_with_neg = True
+        return targets
