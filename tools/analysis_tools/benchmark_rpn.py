@@ -192,15 +192,23 @@ def head_cfg(name, width):
 
 
 def build_rpn(name, width):
-    """MMDet's ``RPN`` detector (the head is its ``bbox_head``)."""
+    """MMDet's ``RPN`` detector (the head is its ``bbox_head``), initialised.
+
+    ``MODELS.build`` leaves every layer at PyTorch's default init; the
+    heads' own initialisation (the focal prior p = 0.01 of the CRPN's
+    objectness, normal(0, 0.01) convolutions) only runs in
+    ``init_weights()``.
+    """
     parts = head_cfg(name, width)
-    return MODELS.build(
+    model = MODELS.build(
         ConfigDict(
             type='RPN',
             rpn_head=parts['rpn_head'],
             train_cfg=dict(rpn=parts['train_cfg']),
             test_cfg=dict(rpn=parts['test_cfg']),
             **trunk_cfg(width)))
+    model.init_weights()
+    return model
 
 
 def build_loader(args, split, seed):

@@ -244,8 +244,9 @@ def build(data_root: str, scale: Tuple[int, int]):
     dataset.update(data_root=data_root,
                    data_prefix=dict(img='leftImg8bit/train/'))
     torch.manual_seed(0)
-    model = MODELS.build(cfg.model).train()
-    return model, dataset
+    model = MODELS.build(cfg.model)
+    model.init_weights()  # the heads' own init (focal priors, zero-inits)
+    return model.train(), dataset
 
 
 def run_variant(model, dataset_cfg: dict, ann_file: str) -> str:
