@@ -1,10 +1,18 @@
 """Mask-logit distillation loss of CBNet-DD (paper section II.E, (11)).
 
 The paper writes the loss as ``CE(sigma(y_t; T=tau), sigma(y_s; T=tau))``:
-cross-entropy between the temperature-softened teacher and student mask
-logits, with the temperature ``tau`` set dynamically to the "maximum
-softmax probability". MMDetection's mask heads emit one *binary* (sigmoid)
-logit ``z`` per pixel, so we read the formula as follows.
+cross-entropy between the teacher's and the student's mask logits, both
+scaled by a temperature ``T`` that is set dynamically to the "maximum
+softmax probability" ``tau``. MMDetection's mask heads emit one *binary*
+(sigmoid) logit ``z`` per pixel, so we read the formula as follows.
+
+Note on the word "temperature": the logits are divided by ``T = tau``,
+and a probability is at most 1, so ``T <= 1`` here (``[0.5, 1]`` below):
+the scaling SHARPENS both distributions (``z / 0.5 = 2 z``), never softens
+them as a distillation temperature ``T > 1`` would. It is strongest where
+the teacher is least sure (``tau`` near 0.5) and vanishes for a confident
+teacher (``tau`` near 1). This is the paper's formula taken literally; we
+implement it as written and document the effect rather than invert it.
 
 * Softmax of a binary logit. Every pixel is a two-class problem with class
   logits ``[0, z]``; its softmax at temperature ``T`` is
@@ -22,7 +30,7 @@ logit ``z`` per pixel, so we read the formula as follows.
   still be pushed to sharpen its masks. We subtract the teacher's entropy,
   i.e. use the KL divergence ``KL(p_t || p_s) = CE(p_t, p_s) - H(p_t)``,
   which has exactly the same gradient w.r.t. the student as the CE of the
-  paper and is 0 if and only if the softened distributions agree.
+  paper and is 0 if and only if the scaled distributions agree.
 * Reduction. The KL is averaged over the pixels of each RoI (so the loss
   does not depend on the mask resolution), then reduced over RoIs with
   MMDetection's ``weight_reduce_loss`` (``weight``, ``avg_factor``,
@@ -58,7 +66,9 @@ def binary_mask_temperature(teacher_logits: Tensor) -> Tensor:
 
 def binary_mask_distill_loss(student_logits: Tensor,
                              teacher_logits: Tensor) -> Tensor:
-    """Per-RoI KL between temperature-softened binary mask distributions.
+    """Per-RoI KL between temperature-scaled binary mask distributions.
+
+    The logits are divided by ``tau`` in ``[0.5, 1]``: a sharpening.
 
     Args:
         student_logits (Tensor): Tensor[N, ...] sigmoid logits of the student.
@@ -84,7 +94,9 @@ def binary_mask_distill_loss(student_logits: Tensor,
 
 @MODELS.register_module()
 class CBNetDistillLoss(nn.Module):
-    """Temperature-softened mask-logit distillation (CBNet formula (11)).
+    """Temperature-scaled mask-logit distillation (CBNet formula (11)).
+
+    The temperature ``tau <= 1`` sharpens (see the module docstring).
 
     See the module docstring for the exact formula. Usable alone::
 

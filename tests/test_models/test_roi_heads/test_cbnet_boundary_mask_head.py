@@ -106,15 +106,21 @@ def test_no_positive_rois_and_no_edge_loss():
                                   ConfigDict(mask_size=28),
                                   edge_preds=edge_preds)['loss_mask']
     assert losses['loss_edge'].item() == 0 and losses['loss_mask'].item() == 0
+
+
+def test_without_edge_loss_there_is_no_edge_branch():
+    """loss_edge=None (the paper configs): a plain FCN mask head."""
     head = build(loss_edge=None)
+    assert not head.with_edge and not hasattr(head, 'conv_edge')
+    head.init_weights()
     sampling, gt = sampled()
     num_pos = sum(len(s.pos_priors) for s in sampling)
-    mask_preds, edge_preds = head(
-        torch.rand(num_pos, 8, 14, 14), return_edge=True)
+    mask_preds = head(torch.rand(num_pos, 8, 14, 14))
     losses = head.loss_and_target(mask_preds, sampling, gt,
-                                  ConfigDict(mask_size=28),
-                                  edge_preds=edge_preds)['loss_mask']
+                                  ConfigDict(mask_size=28))['loss_mask']
     assert set(losses) == {'loss_mask'}
+    with pytest.raises(ValueError, match='no edge branch'):
+        head(torch.rand(1, 8, 14, 14), return_edge=True)
 
 
 def test_bad_edge_kernel():

@@ -41,7 +41,8 @@ class CBNetBoundaryMaskHead(FCNMaskHead):
 
     Args:
         loss_edge (dict, optional): Loss config of the edge output, called
-            like a mask loss ``(pred, target, label)``.
+            like a mask loss ``(pred, target, label)``; None: no edge
+            branch (no ``conv_edge``, ``with_edge`` False).
         edge_kernel (int): Odd erosion window (pixels) of the edge
             targets. Defaults to 3.
         channels_last (bool, optional): Run the convolutions on
@@ -64,17 +65,20 @@ class CBNetBoundaryMaskHead(FCNMaskHead):
         self.edge_kernel = edge_kernel
         self.channels_last = channels_last
         self.loss_edge = None if loss_edge is None else MODELS.build(loss_edge)
-        self.conv_edge = build_conv_layer(self.predictor_cfg,
-                                          self.conv_logits.in_channels, 1, 1)
+        if self.loss_edge is not None:
+            self.conv_edge = build_conv_layer(
+                self.predictor_cfg, self.conv_logits.in_channels, 1, 1)
 
     @property
     def with_edge(self) -> bool:
-        """bool: The head has an edge output (always True here)."""
-        return True
+        """bool: The head has a (supervised) edge output."""
+        return self.loss_edge is not None
 
     def init_weights(self) -> None:
         """Initialise ``conv_edge`` like ``conv_logits``."""
         super().init_weights()
+        if not self.with_edge:
+            return
         nn.init.kaiming_normal_(
             self.conv_edge.weight, mode='fan_out', nonlinearity='relu')
         nn.init.constant_(self.conv_edge.bias, 0)
@@ -106,6 +110,10 @@ class CBNetBoundaryMaskHead(FCNMaskHead):
         mask_preds = self.conv_logits(x).contiguous()
         if not return_edge:
             return mask_preds
+        if not self.with_edge:
+            raise ValueError(
+                'CBNetBoundaryMaskHead: return_edge=True but the head has no '
+                'edge branch (loss_edge=None)')
         return mask_preds, self.conv_edge(x).contiguous()
 
     def loss_and_target(self,
