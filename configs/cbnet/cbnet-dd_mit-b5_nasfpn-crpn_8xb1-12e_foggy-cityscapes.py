@@ -9,8 +9,8 @@ model = dict(
     _delete_=True,
     type='CBNetDistiller',
     detector=detector,
-    # CE between temperature-softened teacher and student mask logits, the
-    # temperature per RoI set by the teacher's max softmax probability
+    # CE between teacher and student mask logits divided by a temperature
+    # per RoI, the teacher's max softmax probability (<= 1: it sharpens)
     distill_loss=dict(type='CBNetDistillLoss', loss_weight=1.0),
     eval_with='student',
     # normalises the stacked foggy (channels 0-2) + clear (3-5) image

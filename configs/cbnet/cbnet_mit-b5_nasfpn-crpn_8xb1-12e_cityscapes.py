@@ -12,3 +12,9 @@ _base_ = [
 # trains 12 real epochs: MMDet's Cityscapes base repeats the set 8 times per
 # "epoch" (RepeatDataset), which we turn off.
 train_dataloader = dict(batch_size=1, num_workers=2, dataset=dict(times=1))
+
+# 1 image per GPU: batch statistics of the neck's BN over one image are
+# noise, so the 8 GPUs pool theirs (SyncBN). A single-process run
+# (tools/train.py without a launcher) gets plain BN back: MMEngine's runner
+# reverts SyncBN when not distributed.
+model = dict(neck=dict(norm_cfg=dict(type='SyncBN', requires_grad=True)))

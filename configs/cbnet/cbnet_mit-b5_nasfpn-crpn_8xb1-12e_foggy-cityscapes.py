@@ -10,3 +10,6 @@ _base_ = [
 
 # as the Cityscapes config: batch 8 = 8 x 1, 12 real epochs
 train_dataloader = dict(batch_size=1, num_workers=2, dataset=dict(times=1))
+
+# 1 image per GPU: SyncBN in the neck, as the Cityscapes config
+model = dict(neck=dict(norm_cfg=dict(type='SyncBN', requires_grad=True)))

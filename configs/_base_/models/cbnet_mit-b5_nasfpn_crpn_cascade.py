@@ -68,10 +68,11 @@ model = dict(
                     target_means=[0., 0., 0., 0.],
                     target_stds=stds),
                 reg_class_agnostic=True,  # paper II.C.1
+                # paper eq. (4): binary cross-entropy per class (no
+                # background logit); MMDet's softmax instead:
+                # dict(type='CrossEntropyLoss', use_sigmoid=False)
                 loss_cls=dict(
-                    type='CrossEntropyLoss',
-                    use_sigmoid=False,
-                    loss_weight=1.0),
+                    type='CBNetSigmoidCrossEntropyLoss', loss_weight=1.0),
                 loss_bbox=dict(type='SmoothL1Loss', beta=1.0,
                                loss_weight=1.0))
             # Cascade R-CNN's per-stage coder deviations
@@ -89,6 +90,9 @@ model = dict(
             in_channels=256,
             conv_out_channels=256,
             num_classes=num_classes,
+            # no edge-map branch: paper (9) has no edge-map loss (its edge
+            # term acts on the mask); set a loss here to add one
+            loss_edge=None,
             # paper (9): L_bound = lambda_shape L_shape + lambda_edge L_edge
             loss_mask=dict(
                 type='CBNetBoundaryAwareLoss',

@@ -26,10 +26,20 @@ optim_wrapper = dict(
         type='AdamW', lr=6e-5, betas=(0.9, 0.999), weight_decay=0.01,
         foreach=True),
     # SegFormer: no weight decay on norms and position tables (CSPE's
-    # relative-position tables are `backbone...attn.cspe.table`)
+    # relative-position tables are `backbone...attn.cspe.table`).
+    # The neck, the RPN and the RoI heads train from scratch while the
+    # backbone is fine-tuned from ImageNet: they learn at 10x the base lr,
+    # as SegFormer's decode head does (lr_mult=10). A parameter matching a
+    # custom key skips the other rules (MMEngine), so the neck's norm
+    # layers keep weight decay, as in MMDet's usual configs.
     paramwise_cfg=dict(
         norm_decay_mult=0.0,
-        custom_keys={'cspe.table': dict(decay_mult=0.0)}),
+        custom_keys={
+            'cspe.table': dict(decay_mult=0.0),
+            'neck': dict(lr_mult=10.0),
+            'rpn_head': dict(lr_mult=10.0),
+            'roi_head': dict(lr_mult=10.0),
+        }),
     clip_grad=dict(max_norm=35, norm_type=2))
 
 # lr 6e-5 is for 8 images per iteration (SegFormer: 8 GPUs x 1); run
