@@ -73,7 +73,9 @@ def evaluate_condition(cfg: Config, checkpoint: str, work_dir: str,
     cfg = condition_cfg(cfg, beta)
     cfg.load_from = checkpoint
     cfg.work_dir = osp.join(work_dir, name)
-    cfg.experiment_name = f'ap_drop_{name}'
+    # unique per run and condition: MMEngine keys its logger and message
+    # hub by this name, and a process may test several checkpoints
+    cfg.experiment_name = f"{cfg.get('experiment_name') or 'ap_drop'}_{name}"
     cfg.pop('resume', None)
     # a test-only runner: nothing of training or validation is built
     for key in ('train_dataloader', 'train_cfg', 'optim_wrapper',

@@ -1,0 +1,542 @@
+"""Train recipes on the same data, budget and seeds, and compare them.
+
+The comparison harness behind ``tools/analysis_tools/compare_recipes.py``.
+Every recipe is an MMDet config; each is trained with MMEngine's
+``Runner`` under one :class:`Budget` (iterations, batch, lr schedule) and
+one seed at a time, on the dataset at ``data_root`` (any dataset in the
+Cityscapes layout: the generated one or the real Cityscapes /
+Foggy Cityscapes), then tested on clear val and on foggy val for each beta
+through :func:`cbnet_mmdet.evaluation.ap_drop.ap_drop`. Each run writes its
+``result.json``; a rerun skips finished runs (resumable). The results are
+summarised as mean +- std over seeds per recipe and condition.
+"""
+import copy
+import json
+import math
+import os
+import os.path as osp
+import platform
+import re
+import time
+from dataclasses import asdict, dataclass
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from mmengine.config import Config
+
+from .ap_drop import ap_drop
+
+#: Built-in sets: (recipe name, config path relative to the configs root).
+RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
+    # the paper's neck, RPN, RoI head and loss against MMDet's stock
+    # models on the same MiT-B0 trunk, widths, data and schedule
+    'arch': [
+        ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+        ('Cascade Mask R-CNN',
+         'demo/cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
+        ('Mask R-CNN', 'demo/mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
+    ],
+    # Table 3: trained on foggy images (beta 0.02)
+    'ablation': [
+        ('CE', 'demo/ablation/'
+         'cbnet_mit-b0_ablation-ce_1xb4-demo_foggy-cityscapes-like.py'),
+        ('+shape', 'demo/ablation/'
+         'cbnet_mit-b0_ablation-shape_1xb4-demo_foggy-cityscapes-like.py'),
+        ('+shape +edge', 'demo/ablation/'
+         'cbnet_mit-b0_ablation-shape-edge_1xb4-demo_foggy-cityscapes-like.py'),
+        ('+shape +edge +KD', 'demo/ablation/cbnet-dd_mit-b0_ablation-'
+         'shape-edge-kd_1xb4-demo_foggy-cityscapes-like.py'),
+    ],
+    # proposal recall of the three RPN heads
+    'rpn': [
+        ('CBNet CRPN', 'demo/rpn/crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+        ('RPNHead', 'demo/rpn/rpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+        ('MMDet CascadeRPNHead',
+         'demo/rpn/mmdet-crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+    ],
+}
+
+#: Reported columns: (name, metric key, scale to percent). Detection sets
+#: report COCO AP (``CocoMetric``) and mIoU (``CBNetInstanceMIoUMetric``);
+#: RPN sets the average recall at 100/300/1000 proposals.
+DETECTION_COLUMNS = (
+    ('box AP', 'coco/bbox_mAP', 100.0),
+    ('mask AP', 'coco/segm_mAP', 100.0),
+    ('mask AP50', 'coco/segm_mAP_50', 100.0),
+    ('mIoU', 'cityscapes/mIoU', 100.0),
+)
+PROPOSAL_COLUMNS = (
+    ('AR@100', 'coco/AR@100', 100.0),
+    ('AR@300', 'coco/AR@300', 100.0),
+    ('AR@1000', 'coco/AR@1000', 100.0),
+)
+
+
+@dataclass
+class Budget:
+    """What every recipe of a comparison gets.
+
+    Attributes:
+        iters (int): Training iterations (0: evaluate the initialised,
+            untrained model).
+        batch_size (int): Images per iteration.
+        lr (float, optional): Base learning rate; None keeps each config's
+            (the shipped demo-size recipes all use 1e-3).
+        warmup_iters (int): Linear warm-up from 1 % of the lr, then
+            polynomial (power 1) decay to 0 at ``iters``.
+        num_workers (int): Data-loading workers.
+    """
+    iters: int = 120
+    batch_size: int = 4
+    lr: Optional[float] = None
+    warmup_iters: int = 30
+    num_workers: int = 1
+
+
+def configs_root() -> str:
+    """The shipped ``configs`` folder (source tree or installed wheel)."""
+    pkg = osp.dirname(osp.dirname(osp.abspath(__file__)))
+    for root in (osp.join(osp.dirname(pkg), 'configs'),
+                 osp.join(pkg, '.mim', 'configs')):
+        if osp.isdir(root):
+            return root
+    raise FileNotFoundError(
+        'cbnet_mmdet: no configs folder next to the package or in its '
+        '.mim folder')
+
+
+def resolve_recipes(set_name: Optional[str] = None,
+                    configs: Sequence[str] = ()) -> List[Tuple[str, str]]:
+    """Recipes of a built-in set and/or ``NAME=PATH`` (or ``PATH``) items.
+
+    Args:
+        set_name (str, optional): A key of :data:`RECIPE_SETS`.
+        configs (Sequence[str]): Extra recipes, ``NAME=PATH`` or ``PATH``
+            (named after the file).
+
+    Returns:
+        list[tuple[str, str]]: (name, absolute config path), in order.
+    """
+    recipes = []
+    if set_name is not None:
+        if set_name not in RECIPE_SETS:
+            raise ValueError(f'unknown recipe set {set_name!r}; built-in '
+                             f'sets: {sorted(RECIPE_SETS)}')
+        root = configs_root()
+        recipes += [(name, osp.join(root, path))
+                    for name, path in RECIPE_SETS[set_name]]
+    for item in configs:
+        name, _, path = item.rpartition('=')
+        name = name or osp.splitext(osp.basename(path))[0]
+        recipes.append((name, osp.abspath(path)))
+    if not recipes:
+        raise ValueError('no recipes: give a --set or --configs')
+    for name, path in recipes:
+        if not osp.isfile(path):
+            raise FileNotFoundError(f'recipe {name!r}: config {path} not '
+                                    'found')
+    names = [n for n, _ in recipes]
+    if len(set(names)) != len(names):
+        raise ValueError(f'recipe names must be unique, got {names}')
+    return recipes
+
+
+def slug(name: str) -> str:
+    """A folder name for a recipe name (``+shape +edge`` -> ``shape_edge``)."""
+    return re.sub(r'[^A-Za-z0-9.]+', '_', name).strip('_') or 'recipe'
+
+
+def replace_data_root(cfg: Config, data_root: str) -> None:
+    """Point every dataset and evaluator of ``cfg`` at ``data_root``.
+
+    Every ``data_root`` equal to the config's top-level ``data_root`` and
+    every ``ann_file`` under it is rewritten, wherever it sits (wrapped or
+    paired datasets, evaluator lists).
+
+    Args:
+        cfg (Config): Modified in place.
+        data_root (str): The new root.
+
+    Raises:
+        KeyError: The config has no top-level ``data_root``.
+    """
+    if 'data_root' not in cfg:
+        raise KeyError(
+            f'{cfg.filename}: no top-level data_root, so the harness cannot '
+            'move its datasets; define data_root as MMDet configs do')
+    old = cfg.data_root.rstrip('/') + '/'
+    new = data_root.rstrip('/') + '/'
+
+    def walk(node):
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if isinstance(value, str) and key == 'data_root' and \
+                        value.rstrip('/') + '/' == old:
+                    node[key] = new
+                elif isinstance(value, str) and key == 'ann_file' and \
+                        value.startswith(old):
+                    node[key] = new + value[len(old):]
+                else:
+                    walk(value)
+        elif isinstance(node, (list, tuple)):
+            for value in node:
+                walk(value)
+
+    walk(cfg._cfg_dict)
+    cfg.data_root = new
+
+
+def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
+               work_dir: str, cfg_options: Optional[dict] = None) -> Config:
+    """The config of one run: ``config`` under ``budget`` and ``seed``.
+
+    The training loop becomes iteration-based (``budget.iters``), the lr
+    schedule a linear warm-up and a poly decay over those iterations, the
+    batch ``budget.batch_size``; nothing is validated during training (the
+    harness tests the last checkpoint), one checkpoint is kept.
+
+    Args:
+        config (str): Config file.
+        budget (Budget): The common budget.
+        seed (int): Seed of the run (weights, sampling, augmentation).
+        data_root (str): Dataset root in the Cityscapes layout.
+        work_dir (str): The run's folder.
+        cfg_options (dict, optional): Overrides applied last.
+
+    Returns:
+        Config: The run's config.
+    """
+    cfg = Config.fromfile(config)
+    replace_data_root(cfg, data_root)
+    iters = max(budget.iters, 1)
+    cfg.train_dataloader.batch_size = budget.batch_size
+    cfg.train_dataloader.num_workers = budget.num_workers
+    cfg.train_dataloader.persistent_workers = budget.num_workers > 0
+    cfg.train_cfg = dict(
+        type='IterBasedTrainLoop', max_iters=iters, val_interval=iters + 1)
+    for key in ('val_dataloader', 'val_cfg', 'val_evaluator'):
+        cfg[key] = None
+    warmup = min(budget.warmup_iters, iters)
+    cfg.param_scheduler = [
+        dict(type='LinearLR', start_factor=1e-2, by_epoch=False, begin=0,
+             end=max(warmup, 1)),
+        dict(type='PolyLR', power=1.0, eta_min=0.0, by_epoch=False,
+             begin=0, end=iters),
+    ]
+    if budget.lr is not None:
+        cfg.optim_wrapper.optimizer.lr = budget.lr
+    cfg.default_hooks.checkpoint = dict(
+        type='CheckpointHook', interval=iters, by_epoch=False,
+        max_keep_ckpts=1, save_best=None)
+    cfg.default_hooks.logger = dict(
+        type='LoggerHook', interval=max(1, iters // 10))
+    cfg.log_processor = dict(type='LogProcessor', window_size=10,
+                             by_epoch=False)
+    cfg.randomness = dict(seed=seed)
+    cfg.work_dir = work_dir
+    cfg.load_from = None
+    cfg.resume = False
+    cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
+    if cfg_options:
+        cfg.merge_from_dict(cfg_options)
+    return cfg
+
+
+def _save_untrained(runner, path: str) -> None:
+    """Initialise the runner's model and save it as a checkpoint."""
+    import torch
+    from mmengine.runner.checkpoint import save_checkpoint, weights_to_cpu
+    torch.manual_seed(runner.seed)
+    runner.model.init_weights()
+    save_checkpoint(
+        dict(state_dict=weights_to_cpu(runner.model.state_dict()),
+             meta=dict(untrained=True)), path)
+
+
+def run_recipe(name: str, config: str, seed: int, budget: Budget,
+               data_root: str, betas: Sequence[float], out_dir: str,
+               cfg_options: Optional[dict] = None) -> dict:
+    """Train one recipe with one seed and test it on clear and foggy val.
+
+    Finished runs are read back from their ``result.json``.
+
+    Args:
+        name (str): Recipe name.
+        config (str): Config file.
+        seed (int): Seed.
+        budget (Budget): Training budget.
+        data_root (str): Dataset root.
+        betas (Sequence[float]): Fog densities (1/m) to test on.
+        out_dir (str): Output folder of the comparison.
+        cfg_options (dict, optional): Config overrides.
+
+    Returns:
+        dict: ``recipe``, ``config``, ``seed``, ``train_time_s``,
+        ``metrics`` (per condition: ``clear``, ``foggy beta=B``).
+    """
+    from mmengine.runner import Runner
+
+    run_dir = osp.join(out_dir, slug(name), f'seed{seed}')
+    result_file = osp.join(run_dir, 'result.json')
+    if osp.isfile(result_file):
+        with open(result_file) as f:
+            return json.load(f)
+    cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
+    stamp = time.strftime('%Y%m%d_%H%M%S')
+    cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
+    runner = Runner.from_cfg(cfg)
+    start = time.perf_counter()
+    if budget.iters > 0:
+        runner.train()
+        checkpoint = osp.join(run_dir, f'iter_{budget.iters}.pth')
+    else:
+        checkpoint = osp.join(run_dir, 'untrained.pth')
+        _save_untrained(runner, checkpoint)
+    train_time = time.perf_counter() - start
+    del runner
+    test_cfg = copy.deepcopy(cfg)
+    table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas)
+    result = dict(
+        recipe=name, config=config, seed=seed, budget=asdict(budget),
+        train_time_s=train_time, metrics=table['metrics'])
+    os.makedirs(run_dir, exist_ok=True)
+    with open(result_file, 'w') as f:
+        json.dump(result, f, indent=1)
+    return result
+
+
+def condition_names(betas: Sequence[float]) -> List[str]:
+    """Condition keys of :func:`ap_drop`: clear, then each beta."""
+    return ['clear'] + [f'foggy beta={b}' for b in betas]
+
+
+def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
+    """The columns whose metric every run reports (detection or proposal).
+
+    Args:
+        results (Sequence[dict]): Outputs of :func:`run_recipe`.
+
+    Returns:
+        tuple: ``(name, key, scale)`` triples.
+    """
+    keys = set.intersection(*(set(r['metrics']['clear']) for r in results))
+    for columns in (DETECTION_COLUMNS, PROPOSAL_COLUMNS):
+        chosen = tuple(c for c in columns if c[1] in keys)
+        if chosen:
+            return chosen
+    raise ValueError(f'no known metric in the results: {sorted(keys)}')
+
+
+def mean_std(values: Sequence[float]) -> Dict[str, float]:
+    """Mean and sample standard deviation (0 for one value)."""
+    arr = np.asarray(values, dtype=float)
+    std = float(arr.std(ddof=1)) if arr.size > 1 else 0.0
+    return dict(mean=float(arr.mean()), std=std, n=int(arr.size))
+
+
+def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
+    """Mean +- std over seeds per recipe, condition and column.
+
+    A metric below 0 (MMDet's -1: nothing to evaluate) counts as missing.
+    Drops are ``clear - foggy`` per seed, then averaged.
+
+    Args:
+        results (Sequence[dict]): Outputs of :func:`run_recipe`.
+        betas (Sequence[float]): The tested fog densities.
+
+    Returns:
+        dict: ``columns`` (names), ``recipes`` (in order of first
+        appearance), and per recipe ``{condition: {column: mean_std}}``
+        plus ``'<column> drop'`` entries for the foggy conditions and
+        ``train time (s)``.
+    """
+    columns = pick_columns(results)
+    conditions = condition_names(betas)
+    recipes: Dict[str, List[dict]] = {}
+    for r in results:
+        recipes.setdefault(r['recipe'], []).append(r)
+
+    def value(run, condition, key, scale):
+        v = run['metrics'].get(condition, {}).get(key)
+        return None if v is None or v < 0 else float(v) * scale
+
+    summary = {}
+    for recipe, runs in recipes.items():
+        entry = {'train time (s)': mean_std([r['train_time_s']
+                                             for r in runs])}
+        for condition in conditions:
+            row = {}
+            for col, key, scale in columns:
+                vals = [value(r, condition, key, scale) for r in runs]
+                vals = [v for v in vals if v is not None]
+                row[col] = mean_std(vals) if vals else None
+                if condition == 'clear':
+                    continue
+                drops = [
+                    value(r, 'clear', key, scale) -
+                    value(r, condition, key, scale) for r in runs
+                    if value(r, 'clear', key, scale) is not None
+                    and value(r, condition, key, scale) is not None
+                ]
+                row[f'{col} drop'] = mean_std(drops) if drops else None
+            entry[condition] = row
+        summary[recipe] = entry
+    return dict(columns=[c[0] for c in columns], conditions=conditions,
+                recipes=list(recipes), summary=summary)
+
+
+def _cell(stat: Optional[dict]) -> str:
+    if stat is None:
+        return '-'
+    if stat['n'] > 1:
+        return f"{stat['mean']:.1f} +- {stat['std']:.1f}"
+    return f"{stat['mean']:.1f}"
+
+
+def to_markdown(summary: dict) -> str:
+    """Markdown tables of :func:`summarize`: one per condition.
+
+    Clear val: every column and the training time. Foggy val: every column
+    and the drop of each from clear (clear - foggy; positive = worse in
+    fog). Cells are ``mean +- std`` over seeds (std of the sample).
+    """
+    cols = summary['columns']
+    out = []
+    for condition in summary['conditions']:
+        foggy = condition != 'clear'
+        heads = cols + ([f'{c} drop' for c in cols] if foggy
+                        else ['train time (s)'])
+        out.append(f'**{condition}**\n')
+        out.append('| recipe | ' + ' | '.join(heads) + ' |')
+        out.append('|---' * (len(heads) + 1) + '|')
+        for recipe in summary['recipes']:
+            entry = summary['summary'][recipe]
+            cells = [_cell(entry[condition].get(h)) for h in heads] \
+                if foggy else \
+                [_cell(entry[condition].get(h)) for h in cols] + \
+                [_cell(entry['train time (s)'])]
+            out.append(f'| {recipe} | ' + ' | '.join(cells) + ' |')
+        out.append('')
+    return '\n'.join(out)
+
+
+def plot(summary: dict, betas: Sequence[float], path: str,
+         column: Optional[str] = None) -> str:
+    """AP (or AR) vs fog density per recipe, mean +- std over seeds.
+
+    Args:
+        summary (dict): :func:`summarize` output.
+        betas (Sequence[float]): Fog densities; clear is drawn at 0.
+        path (str): Output image (PNG).
+        column (str, optional): Column to draw; default mask AP, else
+            the last column (AR@1000 for proposals).
+
+    Returns:
+        str: ``path``.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    cols = summary['columns']
+    column = column or ('mask AP' if 'mask AP' in cols else cols[-1])
+    xs = [0.0] + list(betas)
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    for recipe in summary['recipes']:
+        entry = summary['summary'][recipe]
+        stats = [entry[c].get(column) for c in summary['conditions']]
+        pts = [(x, s) for x, s in zip(xs, stats) if s is not None]
+        if not pts:
+            continue
+        ax.errorbar([p[0] for p in pts], [p[1]['mean'] for p in pts],
+                    yerr=[p[1]['std'] for p in pts], marker='o', capsize=3,
+                    label=recipe)
+    ax.set_xlabel('fog density beta (1/m; 0 = clear)')
+    ax.set_ylabel(f'{column} (%)')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def machine() -> str:
+    """One line describing this machine and the software stack."""
+    import mmdet
+    import torch
+    cores = os.cpu_count()
+    return (f'{platform.machine()} {cores}-core, {platform.system()}, '
+            f'torch {torch.__version__}, mmdet {mmdet.__version__}, '
+            f'{torch.get_num_threads()} intra-op thread(s)')
+
+
+def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
+            budget: Budget, data_root: str, betas: Sequence[float],
+            out_dir: str, cfg_options: Optional[dict] = None,
+            log: Callable[[str], None] = print,
+            set_name: Optional[str] = None) -> dict:
+    """Run every recipe with every seed, then summarise, tabulate, plot.
+
+    Writes ``compare.json`` (runs, summary, budget, machine, date),
+    ``compare.md`` and ``compare.png`` into ``out_dir``.
+
+    Args:
+        recipes (Sequence[tuple[str, str]]): (name, config path).
+        seeds (Sequence[int]): Seeds; every recipe runs with each.
+        budget (Budget): Training budget of every run.
+        data_root (str): Dataset root (Cityscapes layout, with
+            ``leftImg8bit_foggy`` for the betas).
+        betas (Sequence[float]): Fog densities to test on.
+        out_dir (str): Output folder.
+        cfg_options (dict, optional): Overrides for every config.
+        log (callable): Progress printer.
+        set_name (str, optional): Name of the built-in set, for the record.
+
+    Returns:
+        dict: What ``compare.json`` holds.
+    """
+    ann = osp.join(data_root, 'annotations',
+                   'instancesonly_filtered_gtFine_val.json')
+    if not osp.isfile(ann):
+        raise FileNotFoundError(
+            f'{ann} not found: --data-root must be a dataset in the '
+            'Cityscapes layout with converted annotations (generate one '
+            'with `python tools/misc/generate_cityscapes_like.py DIR '
+            '--convert`, or convert the real one with '
+            '`python tools/dataset_converters/cityscapes.py DIR`)')
+    os.makedirs(out_dir, exist_ok=True)
+    jobs = [(name, cfg, seed) for name, cfg in recipes for seed in seeds]
+    results, spent, fresh = [], 0.0, 0
+    for k, (name, config, seed) in enumerate(jobs, 1):
+        done = osp.isfile(osp.join(out_dir, slug(name), f'seed{seed}',
+                                   'result.json'))
+        eta = ''
+        if fresh:
+            left = sum(1 for j in jobs[k - 1:] if not osp.isfile(osp.join(
+                out_dir, slug(j[0]), f'seed{j[2]}', 'result.json')))
+            eta = f', about {math.ceil(spent / fresh * left / 60)} min left'
+        log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
+            f'{"already done" if done else "training"}{eta}')
+        start = time.perf_counter()
+        result = run_recipe(name, config, seed, budget, data_root, betas,
+                            out_dir, cfg_options)
+        if not done:
+            spent += time.perf_counter() - start
+            fresh += 1
+        results.append(result)
+    summary = summarize(results, betas)
+    record = dict(
+        set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],
+        seeds=list(seeds), budget=asdict(budget), data_root=data_root,
+        betas=list(betas), machine=machine(),
+        date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
+        runs=results, summary=summary)
+    with open(osp.join(out_dir, 'compare.json'), 'w') as f:
+        json.dump(record, f, indent=1)
+    markdown = to_markdown(summary)
+    with open(osp.join(out_dir, 'compare.md'), 'w') as f:
+        f.write(markdown + '\n')
+    plot(summary, betas, osp.join(out_dir, 'compare.png'))
+    log(markdown)
+    return record
