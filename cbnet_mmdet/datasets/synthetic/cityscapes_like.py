@@ -144,6 +144,21 @@ def _rasterise(polys: dict, scene: Sequence[ScenePolygon]
     return label_ids, inst_ids, np.asarray(order, np.int32)
 
 
+def _all_classes_visible(scene: Sequence[ScenePolygon],
+                         cam: SceneCamera) -> bool:
+    """Whether each of the 8 classes keeps an instance with at least
+    :data:`MIN_VISIBLE_PX` visible pixels (a quick painter's-order raster
+    of the annotated polygons: what cityscapesscripts will draw)."""
+    order = Image.new('I', (cam.width, cam.height), 0)
+    draw = ImageDraw.Draw(order)
+    for i, p in enumerate(scene):
+        draw.polygon([tuple(v) for v in p.polygon.tolist()], fill=i)
+    visible = np.bincount(np.asarray(order, np.int32).ravel(),
+                          minlength=len(scene))
+    return {p.label for p, n in zip(scene, visible)
+            if n >= MIN_VISIBLE_PX} >= set(INSTANCE_CLASSES)
+
+
 def _instances(inst_ids: np.ndarray) -> List[dict]:
     """What the instance image holds for the 8 classes: one entry per id
     with its label, crowd flag and visible area in pixels."""
@@ -195,16 +210,14 @@ def generate_image(out_root: str, split: str, index: int,
     for _ in range(MAX_TRIES):
         scene = sample_scene(cam, rng, empty=empty, crowd=crowd,
                              density=density)
-        polys = _polygons_json(scene, cam)
-        label_ids, inst_ids, order = _rasterise(polys, scene)
-        visible = {i['label'] for i in _instances(inst_ids)
-                   if not i['iscrowd'] and i['area'] >= MIN_VISIBLE_PX}
-        if empty or visible == set(INSTANCE_CLASSES):
+        if empty or _all_classes_visible(scene, cam):
             break
     else:
         raise RuntimeError(
             f'could not draw all 8 classes visibly in {MAX_TRIES} tries '
             f'at {img_size}: use a larger image size')
+    polys = _polygons_json(scene, cam)
+    label_ids, inst_ids, order = _rasterise(polys, scene)
     depth_m = pixel_depth(order, scene, cam)
     depth = render_depth(depth_m)
     rgb = render_rgb(order, scene, cam, depth_m, rng)

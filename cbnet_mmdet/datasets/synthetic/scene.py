@@ -19,6 +19,7 @@ instance image keeps each instance's visible part. Nothing here draws
 pixels: :mod:`.cityscapes_like` rasterises scenes with cityscapesscripts'
 renderers and :mod:`.texture` colours them.
 """
+import functools
 from dataclasses import dataclass, field
 from typing import List, Optional, Sequence, Tuple
 
@@ -181,6 +182,12 @@ def pixel_depth(order: np.ndarray, scene: Sequence[ScenePolygon],
 def clip_loop(poly: np.ndarray, width: int, height: int) -> np.ndarray:
     """Sutherland-Hodgman clip of a polygon to the image, ``float[K, 2]``
     pixels -> ``float[M, 2]`` (``M = 0`` when outside)."""
+    lo, hi = poly.min(0), poly.max(0)
+    if lo[0] >= 0 and lo[1] >= 0 and hi[0] <= width - 1 and \
+            hi[1] <= height - 1:
+        return np.asarray(poly, float)  # inside: nothing to clip
+    if hi[0] < 0 or hi[1] < 0 or lo[0] > width - 1 or lo[1] > height - 1:
+        return np.zeros((0, 2))  # wholly on one side
     pts = [tuple(p) for p in poly]
     for axis, bound, keep_low in ((0, 0, False), (0, width - 1, True),
                                   (1, 0, False), (1, height - 1, True)):
@@ -325,6 +332,7 @@ def _props(cam: SceneCamera, st: Street, rng: np.random.Generator
     return [p for p in out if p is not None]
 
 
+@functools.lru_cache(maxsize=None)
 def _width(cls: str, view: str) -> float:
     x0, _, x1, _ = extent(SILHOUETTES[(cls, view)])
     return x1 - x0
@@ -357,6 +365,11 @@ def _place(cam: SceneCamera, cls: str, x: float, z: float, along: bool,
     if x > 0:  # the rear end is nearest, on the right: mirrored
         return 'side', (float(col + sy * rear / 2), float(bottom)), (-sx, sy)
     return 'side', (float(col - sy * rear / 2), float(bottom)), (sx, sy)
+
+
+@functools.lru_cache(maxsize=None)
+def _height(cls: str) -> float:
+    return extent(SILHOUETTES[(cls, 'side')])[3]
 
 
 #: Where a rider sits on each two-wheeler, per view: metre offset of the
@@ -411,8 +424,7 @@ class _Objects:
         two-wheeler when ``rider``); False when it is too small, behind the
         camera's near limit or outside the image."""
         cam, rng = self.cam, self.rng
-        loops = SILHOUETTES[(cls, 'side')]
-        if z < MIN_DEPTH or cam.focal * extent(loops)[3] / z < MIN_HEIGHT_PX:
+        if z < MIN_DEPTH or cam.focal * _height(cls) / z < MIN_HEIGHT_PX:
             return False
         view, origin, scale = _place(cam, cls, x, z, along, rng)
         poly = _object(cam, cls, SILHOUETTES[(cls, view)], z, view, origin,
