@@ -6,18 +6,22 @@ of MMDetection's ``tools/dataset_converters/cityscapes.py`` (which its
 
 * ``images``: ``file_name`` (``'{city}/{stem}_leftImg8bit.png'``, relative
   to ``leftImg8bit/{split}/``), ``height``, ``width``, ``segm_file``
-  (``'{city}/{stem}_gtFine_labelIds.png'``), ``id`` (0, 1, ...).
+  (``'{city}/{stem}_gtFine_labelIds.png'``), ``id`` (1, 2, ...).
 * ``annotations``: one per instance id of ``*_gtFine_instanceIds.png``
   whose label has instances and is evaluated: ``iscrowd`` (1 for group
   regions, whose id is the bare label id < 1000), ``category_id`` (the
   cityscapesscripts label id), ``bbox`` (COCO ``[x, y, w, h]``, pixels),
-  ``area`` (pixels), ``segmentation`` (COCO RLE), ``image_id``, ``id``.
+  ``area`` (pixels), ``segmentation`` (COCO RLE), ``image_id``, ``id``
+  (1, 2, ... over the split).
 * ``categories``: the 8 evaluated instance labels of
   ``cityscapesscripts.helpers.labels`` with their ids (24..33).
 
-Two deliberate differences from MMDetection's script: images are sorted
-(its ``glob`` order depends on the file system) and an annotation-free split
-keeps an empty ``annotations`` list instead of dropping the key. Malformed
+Three deliberate differences from MMDetection's script: ids start at 1
+(pycocotools' ``COCOeval`` stores the id of the matched annotation and reads
+0 as "no match", so MMDet's annotation id 0 is never a true positive), images
+are sorted (its ``glob`` order depends on the file system) and an
+annotation-free split keeps an empty ``annotations`` list instead of dropping
+the key. Malformed
 input raises ``FileNotFoundError`` / ``ValueError`` naming the file.
 """
 import glob
@@ -169,17 +173,25 @@ def image_annotations(files: FileTriple) -> dict:
         segm_file=osp.join(city, osp.basename(segm_file)))
 
 
+#: First image and annotation id. Not 0: ``COCOeval.evaluateImg`` records
+#: a match as the matched id and tests it for truth, so a detection matched
+#: to annotation 0 counts as a false positive.
+FIRST_ID = 1
+
+
 def to_coco(image_infos: Sequence[dict]) -> dict:
-    """Number images and annotations and add the categories."""
+    """Number images and annotations from :data:`FIRST_ID` and add the
+    categories."""
     out = dict(images=[], annotations=[], categories=[])
-    for img_id, info in enumerate(image_infos):
+    for img_id, info in enumerate(image_infos, start=FIRST_ID):
         info = dict(info)
         annos = info.pop('anno_info')
         info['id'] = img_id
         out['images'].append(info)
         for anno in annos:
             out['annotations'].append(
-                dict(anno, image_id=img_id, id=len(out['annotations'])))
+                dict(anno, image_id=img_id,
+                     id=FIRST_ID + len(out['annotations'])))
     out['categories'] = [
         dict(id=lab.id, name=lab.name) for lab in EVAL_LABELS
     ]

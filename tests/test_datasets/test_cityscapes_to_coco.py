@@ -9,11 +9,17 @@ import mmdet  # noqa: F401
 import numpy as np
 import pycocotools.mask as mask_utils
 import pytest
+import torch
 from PIL import Image
+
+from mmdet.registry import METRICS
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
 
 from cbnet_mmdet.datasets.cityscapes_to_coco import (collect_files, convert,
                                                      image_annotations)
-from cbnet_mmdet.datasets.synthetic import INSTANCE_CLASSES, load_record
+from cbnet_mmdet.datasets.synthetic import (INSTANCE_CLASSES, image_stem,
+                                            load_record)
 
 
 def _load_json(root, split):
@@ -44,8 +50,11 @@ def test_matches_what_was_drawn(cityscapes_like_root, split):
     assert [c['id'] for c in coco['categories']] == [
         24, 25, 26, 27, 28, 31, 32, 33
     ]
+    # ids from 1: pycocotools reads a match to id 0 as no match
     ids = [a['id'] for a in coco['annotations']]
-    assert ids == list(range(len(ids)))
+    assert ids == list(range(1, len(ids) + 1))
+    assert [img['id'] for img in coco['images']] == list(
+        range(1, len(coco['images']) + 1))
 
 
 def test_masks_and_boxes_exact(cityscapes_like_root):
@@ -128,3 +137,60 @@ def test_empty_split(tmp_path):
     os.makedirs(root / 'gtFine' / 'val' / 'x')
     with pytest.raises(FileNotFoundError, match='no {city}'):
         convert(str(root), splits=['val'])
+
+
+def _single_image_tree(root, dst, index):
+    """A copy of ``root`` holding only val image ``index`` (image and gtFine
+    files), converted."""
+    _, stem = image_stem('val', index)
+    (files, ) = [f for f in collect_files(root, 'val') if stem in f[0]]
+    for path in files:
+        rel = osp.relpath(path, root)
+        os.makedirs(osp.dirname(dst / rel), exist_ok=True)
+        shutil.copy(path, dst / rel)
+    return convert(str(dst), splits=['val'])['val']
+
+
+def test_ground_truth_as_prediction_scores_100(cityscapes_like_root,
+                                                tmp_path):
+    """Each annotation given back as a detection is a true positive: 100 AP
+    through MMDet's CocoMetric and through pycocotools itself. A split
+    numbered from 0 loses its first annotation (COCOeval reads a match to
+    id 0 as no match) and scores below 100."""
+    # val image 1 of the fixture has instances and no crowd region
+    ann_file = _single_image_tree(cityscapes_like_root, tmp_path / 'cs', 1)
+    with open(ann_file) as f:
+        coco = json.load(f)
+    anns = coco['annotations']
+    (img, ) = coco['images']
+    assert anns and not anns[0]['iscrowd'] and len(anns) >= 8
+    cat_ids = [c['id'] for c in coco['categories']]
+
+    metric = METRICS.build(dict(type='CocoMetric', ann_file=ann_file,
+                                metric=['bbox', 'segm']))
+    metric.dataset_meta = dict(
+        classes=tuple(c['name'] for c in coco['categories']))
+    masks = mask_utils.decode([a['segmentation'] for a in anns])
+    boxes = torch.tensor([a['bbox'] for a in anns], dtype=torch.float32)
+    boxes[:, 2:] += boxes[:, :2]  # xywh -> xyxy
+    metric.process({}, [dict(
+        img_id=img['id'], ori_shape=(img['height'], img['width']),
+        pred_instances=dict(
+            bboxes=boxes, scores=torch.ones(len(anns)),
+            labels=torch.tensor(
+                [cat_ids.index(a['category_id']) for a in anns]),
+            masks=torch.from_numpy(masks.transpose(2, 0, 1).astype(bool))))])
+    res = metric.evaluate(1)
+    for kind in ('bbox', 'segm'):
+        assert res[f'coco/{kind}_mAP'] == 1.0, res
+        assert res[f'coco/{kind}_mAP_50'] == 1.0, res
+
+    gt = COCO(ann_file)
+    dets = gt.loadRes([dict(image_id=a['image_id'], bbox=a['bbox'],
+                            category_id=a['category_id'], score=1.0)
+                       for a in anns])
+    ev = COCOeval(gt, dets, 'bbox')
+    ev.evaluate()
+    ev.accumulate()
+    ev.summarize()
+    assert ev.stats[0] == 1.0  # AP@[.5:.95]

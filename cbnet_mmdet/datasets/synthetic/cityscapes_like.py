@@ -17,12 +17,20 @@ their encodings are the released ones: ``labelIds`` per
 ``cityscapesscripts.helpers.labels``, ``instanceIds = labelId * 1000 + k``
 for instances and ``labelId`` for crowd (``*group``) and stuff regions.
 
-The depth PNG stores the distance to the camera in centimetres (uint16,
-65535 = 655.35 m; sky = 600 m). The foggy images apply the atmospheric
-scattering model used to build Foggy Cityscapes (Sakaridis et al., 2018)
-to that stored depth: ``I = R t + L (1 - t)``, ``t = exp(-beta d)`` with
-``R`` the clear image and ``L`` the atmospheric light in [0, 1], ``d`` in
-metres and ``beta`` in 1/m (visibility 2.996 / beta: 150 m at 0.02).
+The scenes (:mod:`.scene`) are streets seen from a car: textured road,
+sidewalks, facades and trees (:mod:`.texture`), rows of parked cars,
+traffic, pedestrians, riders on bicycles and motorcycles, drawn far to
+near so that nearer objects hide farther ones: the instance image holds
+each instance's visible part, as Cityscapes annotates it.
+
+The depth PNG stores, in centimetres, the depth along the optical axis of
+the surface SEEN at each pixel (uint16, 65535 = 655.35 m; sky = 600 m;
+through a bicycle's wheels, what is behind it). The foggy images apply the
+atmospheric scattering model used to build Foggy Cityscapes (Sakaridis et
+al., 2018) to that stored depth: ``I = R t + L (1 - t)``,
+``t = exp(-beta d)`` with ``R`` the clear image and ``L`` the atmospheric
+light in [0, 1], ``d`` in metres and ``beta`` in 1/m (visibility
+2.996 / beta: 150 m at 0.02).
 
 Everything is a function of ``seed`` (each image has its own random stream
 from ``(seed, split, index)``): the same call writes byte-identical files.
@@ -39,10 +47,11 @@ from cityscapesscripts.preparation.json2instanceImg import \
     createInstanceImage
 from cityscapesscripts.preparation.json2labelImg import createLabelImage
 from mmengine.utils import track_parallel_progress, track_progress
-from PIL import Image, ImageDraw
+from PIL import Image, ImageChops, ImageDraw
 from ..cityscapes_paths import FOGGY_BETAS, foggy_path
 from .scene import (INSTANCE_CLASSES, SceneCamera, ScenePolygon,
-                    sample_scene)
+                    pixel_depth, sample_scene)
+from .texture import render_rgb
 
 #: Cities of each split (real Cityscapes city names).
 CITIES = {'train': ('aachen', 'bochum'), 'val': ('frankfurt', 'lindau')}
@@ -55,15 +64,6 @@ DEPTH_SCALE = 100.0
 #: has an instance at least MIN_VISIBLE_PX pixels visible (occlusions may
 #: hide one entirely).
 MAX_TRIES, MIN_VISIBLE_PX = 50, 4
-#: Colours of the background ('stuff') labels, RGB; instances use their
-#: Cityscapes palette colour.
-STUFF_COLOURS = {
-    'sky': (140, 175, 215),
-    'building': (115, 108, 100),
-    'vegetation': (85, 125, 55),
-    'sidewalk': (175, 170, 162),
-    'road': (92, 92, 98),
-}
 #: Record of what was drawn, written at ``out_root``.
 RECORD_FILE = 'generator_record.json'
 
@@ -77,91 +77,10 @@ def image_stem(split: str, index: int) -> Tuple[str, str]:
     return city, f'{city}_{index:06d}_000019'
 
 
-def _texture(cls_idx: np.ndarray, u: np.ndarray, v: np.ndarray
-             ) -> np.ndarray:
-    """Per-class texture in [-1, 1], laid in object coordinates.
-
-    Args:
-        cls_idx (np.ndarray): ``int[H, W]`` index into
-            :data:`INSTANCE_CLASSES`, -1 for stuff.
-        u (np.ndarray): ``float[H, W]`` x inside the object box, 0..1.
-        v (np.ndarray): ``float[H, W]`` y inside the object box, 0..1.
-
-    Returns:
-        np.ndarray: ``float[H, W]``; 0 on stuff.
-    """
-    tau = 2 * np.pi
-    patterns = (
-        lambda u, v: np.sin(tau * 4 * u),                   # person: |||
-        lambda u, v: np.sin(tau * 3 * (u + v)),             # rider: ///
-        lambda u, v: np.where(v < 0.4, -1.0, 0.3),          # car: windows
-        lambda u, v: np.sin(tau * 3 * v),                   # truck: ===
-        lambda u, v: np.where(                              # bus: windows
-            (v > .15) & (v < .45) & (np.mod(6 * u, 1) < .6), 1., -.3),
-        lambda u, v: np.sign(np.sin(tau * 8 * v)),          # train: lines
-        lambda u, v: np.where(                              # motorcycle:
-            (np.floor(4 * u) + np.floor(4 * v)) % 2 == 0, 1., -1.),  # chess
-        lambda u, v: np.sin(tau * 4 * u) * np.sin(tau * 4 * v),  # bicycle
-    )
-    tex = np.zeros(u.shape)
-    for k, pattern in enumerate(patterns):  # 8 classes, pixels vectorised
-        sel = cls_idx == k
-        tex[sel] = pattern(u[sel], v[sel])
-    return tex
-
-
-def render_rgb(order: np.ndarray, scene: Sequence[ScenePolygon],
-               rng: np.random.Generator) -> np.ndarray:
-    """Colour a rasterised scene.
-
-    Each pixel takes its label's Cityscapes colour, scaled by a random
-    brightness per polygon and modulated by its class texture (instances
-    only), plus Gaussian noise.
-
-    Args:
-        order (np.ndarray): ``int32[H, W]`` index of the polygon covering
-            each pixel (painter's order, last drawn wins).
-        scene (Sequence[ScenePolygon]): The scene polygons.
-        rng (np.random.Generator): Source of randomness.
-
-    Returns:
-        np.ndarray: ``uint8[H, W, 3]`` RGB image.
-    """
-    h, w = order.shape
-    colour = np.array([
-        STUFF_COLOURS.get(p.label, name2label[_base(p.label)].color)
-        for p in scene
-    ], np.float64)
-    gain = rng.uniform(0.75, 1.15, size=len(scene))
-    boxes = np.array([p.box for p in scene], np.float64)
-    cls_of = np.array([
-        INSTANCE_CLASSES.index(_base(p.label))
-        if _base(p.label) in INSTANCE_CLASSES else -1 for p in scene
-    ])
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    box = boxes[order]
-    u = (xs - box[..., 0]) / np.maximum(box[..., 2], 1.0)
-    v = (ys - box[..., 1]) / np.maximum(box[..., 3], 1.0)
-    tex = _texture(cls_of[order], u, v)
-    # textures darken/brighten by up to 35%, plus a floor so dark classes
-    # (truck, bus: near-black in the Cityscapes palette) still show them
-    rgb = (colour[order] * gain[order, None] * (1 + 0.35 * tex[..., None])
-           + 40 * (tex[..., None] + 1) * (cls_of[order, None] >= 0))
-    rgb += rng.normal(0, 6, size=rgb.shape)
-    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
-
-
-def render_depth(order: np.ndarray, scene: Sequence[ScenePolygon],
-                 cam: SceneCamera) -> np.ndarray:
-    """Depth map of a rasterised scene, ``uint16[H, W]`` in centimetres.
-
-    Objects, buildings and sky have a constant depth; road and sidewalk
-    follow the ground plane row by row.
-    """
-    depth = np.array([p.depth for p in scene])[order]
-    ground = np.broadcast_to(cam.ground_depth()[:, None], order.shape)
-    depth = np.where(np.isnan(depth), ground, depth)
-    return np.clip(np.rint(depth * DEPTH_SCALE), 0,
+def render_depth(depth_m: np.ndarray) -> np.ndarray:
+    """The depth PNG content: ``float[H, W]`` metres to ``uint16[H, W]``
+    centimetres (rounded, saturating at 655.35 m)."""
+    return np.clip(np.rint(depth_m * DEPTH_SCALE), 0,
                    np.iinfo(np.uint16).max).astype(np.uint16)
 
 
@@ -184,10 +103,6 @@ def add_fog(rgb: np.ndarray, depth_m: np.ndarray, beta: float,
     return np.clip(np.rint(foggy * 255), 0, 255).astype(np.uint8)
 
 
-def _base(label: str) -> str:
-    return label[:-len('group')] if label.endswith('group') else label
-
-
 def _polygons_json(scene: Sequence[ScenePolygon], cam: SceneCamera) -> dict:
     """The ``*_gtFine_polygons.json`` content (the released keys)."""
     return dict(
@@ -198,24 +113,50 @@ def _polygons_json(scene: Sequence[ScenePolygon], cam: SceneCamera) -> dict:
         ])
 
 
-def _rasterise(polys: dict) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rasterise(polys: dict, scene: Sequence[ScenePolygon]
+               ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rasterise a polygons JSON.
 
     Returns:
         tuple: ``uint8[H, W]`` label ids and ``int32[H, W]`` instance ids
         (cityscapesscripts' renderers), and ``int32[H, W]`` index of the
-        polygon covering each pixel (same painter's order, for colours and
-        depth).
+        polygon SEEN at each pixel (same painter's order, with the painted
+        ``look`` of see-through objects; for colours and depth).
     """
     ann = Annotation()
     ann.fromJsonText(json.dumps(polys))
     label_ids = np.asarray(createLabelImage(ann, 'ids'), np.uint8)
     inst_ids = np.asarray(createInstanceImage(ann, 'ids'), np.int32)
-    order = Image.new('I', (polys['imgWidth'], polys['imgHeight']), 0)
+    size = (polys['imgWidth'], polys['imgHeight'])
+    order = Image.new('I', size, 0)
     draw = ImageDraw.Draw(order)
-    for i, obj in enumerate(polys['objects']):
-        draw.polygon([tuple(p) for p in obj['polygon']], fill=i)
+    for i, p in enumerate(scene):
+        if p.look is None:
+            draw.polygon([tuple(v) for v in p.polygon.tolist()], fill=i)
+        else:  # the painted parts, inside the annotated outline
+            seen = Image.new('1', size, 0)
+            ImageDraw.Draw(seen).polygon(
+                [tuple(v) for v in p.look.tolist()], fill=1)
+            outline = Image.new('1', size, 0)
+            ImageDraw.Draw(outline).polygon(
+                [tuple(v) for v in p.polygon.tolist()], fill=1)
+            order.paste(i, mask=ImageChops.logical_and(seen, outline))
     return label_ids, inst_ids, np.asarray(order, np.int32)
+
+
+def _all_classes_visible(scene: Sequence[ScenePolygon],
+                         cam: SceneCamera) -> bool:
+    """Whether each of the 8 classes keeps an instance with at least
+    :data:`MIN_VISIBLE_PX` visible pixels (a quick painter's-order raster
+    of the annotated polygons: what cityscapesscripts will draw)."""
+    order = Image.new('I', (cam.width, cam.height), 0)
+    draw = ImageDraw.Draw(order)
+    for i, p in enumerate(scene):
+        draw.polygon([tuple(v) for v in p.polygon.tolist()], fill=i)
+    visible = np.bincount(np.asarray(order, np.int32).ravel(),
+                          minlength=len(scene))
+    return {p.label for p, n in zip(scene, visible)
+            if n >= MIN_VISIBLE_PX} >= set(INSTANCE_CLASSES)
 
 
 def _instances(inst_ids: np.ndarray) -> List[dict]:
@@ -243,7 +184,7 @@ def _save(arr: np.ndarray, path: str) -> None:
 def generate_image(out_root: str, split: str, index: int,
                    img_size: Tuple[int, int], seed: int,
                    betas: Sequence[float], empty: bool,
-                   crowd: bool) -> dict:
+                   crowd: bool, density: float = 1.0) -> dict:
     """Generate and write one image with all its files.
 
     Args:
@@ -255,6 +196,8 @@ def generate_image(out_root: str, split: str, index: int,
         betas (Sequence[float]): Fog densities to write, 1/m.
         empty (bool): Draw no instances.
         crowd (bool): Add a crowd region.
+        density (float): Scale of the object counts (see
+            :func:`~.scene.sample_scene`).
 
     Returns:
         dict: Record ``{split, city, stem, height, width, instances}`` with
@@ -265,19 +208,19 @@ def generate_image(out_root: str, split: str, index: int,
         [seed, split_code, index]))
     cam = SceneCamera(*img_size)
     for _ in range(MAX_TRIES):
-        scene = sample_scene(cam, rng, empty=empty, crowd=crowd)
-        polys = _polygons_json(scene, cam)
-        label_ids, inst_ids, order = _rasterise(polys)
-        visible = {i['label'] for i in _instances(inst_ids)
-                   if not i['iscrowd'] and i['area'] >= MIN_VISIBLE_PX}
-        if empty or visible == set(INSTANCE_CLASSES):
+        scene = sample_scene(cam, rng, empty=empty, crowd=crowd,
+                             density=density)
+        if empty or _all_classes_visible(scene, cam):
             break
     else:
         raise RuntimeError(
             f'could not draw all 8 classes visibly in {MAX_TRIES} tries '
             f'at {img_size}: use a larger image size')
-    rgb = render_rgb(order, scene, rng)
-    depth = render_depth(order, scene, cam)
+    polys = _polygons_json(scene, cam)
+    label_ids, inst_ids, order = _rasterise(polys, scene)
+    depth_m = pixel_depth(order, scene, cam)
+    depth = render_depth(depth_m)
+    rgb = render_rgb(order, scene, cam, depth_m, rng)
 
     city, stem = image_stem(split, index)
     gt = osp.join(out_root, 'gtFine', split, city, stem + '_gtFine_')
@@ -309,7 +252,8 @@ def generate_cityscapes_like(out_root: str,
                              betas: Sequence[float] = FOGGY_BETAS,
                              empty_every: int = 5,
                              crowd_every: int = 2,
-                             nproc: int = 1) -> Dict[str, list]:
+                             nproc: int = 1,
+                             density: float = 1.0) -> Dict[str, list]:
     """Write a deterministic Cityscapes-like dataset (train and val).
 
     Args:
@@ -327,6 +271,8 @@ def generate_cityscapes_like(out_root: str,
         crowd_every (int): Every ``crowd_every``-th non-empty image (from
             index 0) has a crowd region; 0 for none.
         nproc (int): Worker processes.
+        density (float): Scale of the mean object counts per image (1:
+            about 19 instances, see docs/dataset.md).
 
     Returns:
         dict[str, list]: Per split, the records of :func:`generate_image`
@@ -338,13 +284,15 @@ def generate_cityscapes_like(out_root: str,
     h, w = img_size
     if h < 32 or w < 32:
         raise ValueError(f'img_size must be at least 32x32, got {img_size}')
+    if density <= 0:
+        raise ValueError(f'density must be > 0, got {density}')
     jobs = []
     for split, num in (('train', num_train), ('val', num_val)):
         for i in range(num):
             empty = empty_every > 0 and (i + 1) % empty_every == 0
             crowd = (not empty and crowd_every > 0 and i % crowd_every == 0)
             jobs.append((out_root, split, i, (h, w), seed, tuple(betas),
-                         empty, crowd))
+                         empty, crowd, density))
     if nproc > 1:
         records = track_parallel_progress(_generate_job, jobs, nproc)
     else:
@@ -353,6 +301,7 @@ def generate_cityscapes_like(out_root: str,
     for rec in records:
         out[rec['split']].append(rec)
     meta = dict(seed=seed, img_size=[h, w], betas=list(betas),
+                density=density,
                 depth_unit_m=1 / DEPTH_SCALE,
                 atmospheric_light=list(ATMOSPHERIC_LIGHT), splits=out)
     with open(osp.join(out_root, RECORD_FILE), 'w') as f:

@@ -6,9 +6,10 @@ import os.path as osp
 import numpy as np
 import pytest
 from cityscapesscripts.helpers.annotation import Annotation
-from cityscapesscripts.helpers.labels import name2label
+from cityscapesscripts.helpers.labels import id2label, name2label
 from cityscapesscripts.preparation.json2labelImg import createLabelImage
 from PIL import Image
+from scipy import ndimage
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS, foggy_path
 from cbnet_mmdet.datasets.synthetic import (INSTANCE_CLASSES, add_fog,
@@ -16,7 +17,9 @@ from cbnet_mmdet.datasets.synthetic import (INSTANCE_CLASSES, add_fog,
                                             load_record)
 from cbnet_mmdet.datasets.synthetic.cityscapes_like import (
     ATMOSPHERIC_LIGHT, DEPTH_SCALE)
-from cbnet_mmdet.datasets.synthetic.scene import SKY_DEPTH
+from cbnet_mmdet.datasets.synthetic.scene import (CAMERA_HEIGHT,
+                                                  FOCAL_PER_WIDTH, HORIZON,
+                                                  SKY_DEPTH)
 
 EVAL_IDS = [name2label[c].id for c in INSTANCE_CLASSES]
 
@@ -38,6 +41,19 @@ def _gt(root, r, kind):
 def _img(root, r):
     return osp.join(root, 'leftImg8bit', r['split'], r['city'],
                     f"{r['stem']}_leftImg8bit.png")
+
+
+def _depth(root, r):
+    """The stored depth, metres."""
+    return _png(osp.join(root, 'depth', r['split'], r['city'],
+                         r['stem'] + '_depth.png')) / DEPTH_SCALE
+
+
+def _instance_masks(root, r):
+    """``(label name, bool mask)`` of each non-crowd instance."""
+    inst = _png(_gt(root, r, 'instanceIds.png')).astype(np.int64)
+    return [(id2label[int(i) // 1000].name, inst == i)
+            for i in np.unique(inst[inst >= 1000])]
 
 
 def test_layout_and_encodings(cityscapes_like_root):
@@ -92,10 +108,11 @@ def test_instances_as_specified(cityscapes_like_root):
 
 
 def test_occlusion_present(cityscapes_like_root):
-    """Some objects are partly hidden: the visible area is smaller than the
-    polygon drawn alone."""
+    """Objects hide each other: each instance's mask is the visible part of
+    its polygon (drawn alone by cityscapesscripts), and many are partly
+    hidden, some mostly."""
     root = cityscapes_like_root
-    occluded = 0
+    shares = []
     for r in _records(root):
         ann = Annotation()
         ann.fromJsonFile(_gt(root, r, 'polygons.json'))
@@ -112,8 +129,117 @@ def test_occlusion_present(cityscapes_like_root):
             full = np.asarray(createLabelImage(alone, 'ids')) > 0
             visible = inst == name2label[obj.label].id * 1000 + k
             assert not (visible & ~full).any()
-            occluded += int(visible.sum() < full.sum())
-    assert occluded >= 3
+            if visible.any():
+                shares.append(visible.sum() / full.sum())
+    shares = np.array(shares)
+    assert len(shares) >= 50
+    assert (shares < 0.99).mean() > 0.3  # partly hidden
+    assert (shares < 0.5).sum() >= 5  # mostly hidden
+
+
+def test_small_objects_and_perspective(cityscapes_like_root):
+    """Many small instances; and perspective: a person standing on the
+    road at depth Z has its foot ``f h / Z`` below the horizon and is
+    ``f 1.75 / Z`` tall, so its height over its foot's distance below the
+    horizon is 1.75 m / camera height, whatever its size."""
+    root = cityscapes_like_root
+    rel, ratios = [], []
+    for r in _records(root):
+        for _, m in _instance_masks(root, r):
+            rel.append(np.sqrt(m.sum() / m.size))
+        ann = Annotation()
+        ann.fromJsonFile(_gt(root, r, 'polygons.json'))
+        horizon = HORIZON * ann.imgHeight
+        for obj in ann.objects:
+            ys = np.array([p.y for p in obj.polygon])
+            if obj.label == 'person' and 0 < ys.min() and \
+                    ys.max() < ann.imgHeight - 1 and ys.max() - ys.min() > 8:
+                ratios.append((ys.max() - ys.min()) / (ys.max() - horizon))
+    rel = np.array(rel)
+    # sqrt(area / image area) < 0.05: under 51 px squared at 1024x2048
+    assert (rel < 0.05).mean() > 0.25, np.histogram(rel, 10)
+    assert (rel > 0.15).sum() >= 3  # and some large ones
+    assert len(ratios) >= 5
+    # integer vertices: a pixel of slack on small persons
+    np.testing.assert_allclose(np.median(ratios), 1.75 / CAMERA_HEIGHT,
+                               rtol=0.08)
+    assert np.percentile(np.abs(np.array(ratios) - 1.75 / CAMERA_HEIGHT),
+                         75) < 0.25
+
+
+def test_thin_parts(cityscapes_like_root):
+    """Riders, persons and two-wheelers have thin parts (limbs, tyres,
+    handlebars): a 3x3 erosion removes most of their pixels."""
+    root = cityscapes_like_root
+    thin = set()
+    for r in _records(root):
+        for name, m in _instance_masks(root, r):
+            if name in ('person', 'rider', 'bicycle', 'motorcycle') and \
+                    m.sum() >= 20:
+                kept = ndimage.binary_erosion(m, np.ones((3, 3))).sum()
+                if kept < 0.4 * m.sum():
+                    thin.add(name)
+    assert {'rider', 'bicycle'} <= thin, thin
+
+
+def test_see_through_bicycles(cityscapes_like_root):
+    """A bicycle's mask has no holes (Cityscapes' policy) but its wheels and
+    frame show what is behind: deeper pixels inside the mask."""
+    root = cityscapes_like_root
+    see = 0
+    for r in _records(root):
+        depth = _depth(root, r)
+        for name, m in _instance_masks(root, r):
+            d = depth[m]
+            if name == 'bicycle' and (d > np.median(d) + 2.0).mean() > 0.1:
+                see += 1
+            if name == 'bicycle':  # no hole: the mask is its filled self
+                filled = ndimage.binary_fill_holes(m)
+                assert (filled & ~m).sum() <= 0.02 * m.sum() + 2
+    assert see >= 2
+
+
+def test_depth_follows_the_scene(cityscapes_like_root):
+    """The stored depth is the scene's: the road follows the ground plane
+    of the camera (re-derived here from its constants), the sky is at
+    SKY_DEPTH."""
+    root = cityscapes_like_root
+    for r in _records(root):
+        depth = _depth(root, r)
+        label = _png(_gt(root, r, 'labelIds.png'))
+        h, w = label.shape
+        rows = np.arange(h)[:, None] + 0.5 - HORIZON * h
+        with np.errstate(divide='ignore'):
+            ground = FOCAL_PER_WIDTH * w * CAMERA_HEIGHT / rows
+        ground = np.broadcast_to(np.minimum(np.where(
+            rows > 0, ground, SKY_DEPTH), SKY_DEPTH), (h, w))
+        road = label == name2label['road'].id
+        assert road.sum() > 0.1 * h * w
+        np.testing.assert_allclose(depth[road], ground[road],
+                                   atol=0.5 / DEPTH_SCALE)
+        sky = label == name2label['sky'].id
+        assert sky.any() and (depth[sky] == SKY_DEPTH).all()
+
+
+@pytest.mark.parametrize('label_name, least', [
+    ('road', 1.5), ('vegetation', 1.5), ('building', 4.0)])
+def test_textured(cityscapes_like_root, label_name, least):
+    """Road, trees and buildings are textured, not flat colour plus pixel
+    noise: the means of their 4x4 pixel blocks still vary (median absolute
+    deviation, which lane marks and shadows barely move; a flat colour
+    with the sensor noise gives about 0.3)."""
+    root = cityscapes_like_root
+    spread = []
+    for r in _records(root):
+        img = _png(_img(root, r)).astype(float).mean(-1)
+        sel = _png(_gt(root, r, 'labelIds.png')) == name2label[label_name].id
+        h, w = (s // 4 * 4 for s in img.shape)
+        blocks = img[:h, :w].reshape(h // 4, 4, w // 4, 4).mean((1, 3))
+        blocks = blocks[sel[:h, :w].reshape(h // 4, 4, w // 4, 4).all(
+            (1, 3))]
+        if len(blocks) >= 10:
+            spread.append(np.median(np.abs(blocks - np.median(blocks))))
+    assert len(spread) >= 3 and np.median(spread) > least, spread
 
 
 def test_fog_model(cityscapes_like_root):
@@ -173,3 +299,5 @@ def test_bad_arguments(tmp_path):
         generate_cityscapes_like(str(tmp_path), 1, 1, betas=(0.03, ))
     with pytest.raises(ValueError, match='32x32'):
         generate_cityscapes_like(str(tmp_path), 1, 1, img_size=(16, 64))
+    with pytest.raises(ValueError, match='density'):
+        generate_cityscapes_like(str(tmp_path), 1, 1, density=0)
