@@ -506,7 +506,9 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             '--convert`, or convert the real one with '
             '`python tools/dataset_converters/cityscapes.py DIR`)')
     os.makedirs(out_dir, exist_ok=True)
-    jobs = [(name, cfg, seed) for name, cfg in recipes for seed in seeds]
+    # seed-major: a comparison cut short still has every recipe at the
+    # seeds it finished
+    jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
     results, spent, fresh = [], 0.0, 0
     for k, (name, config, seed) in enumerate(jobs, 1):
         done = osp.isfile(osp.join(out_dir, slug(name), f'seed{seed}',
