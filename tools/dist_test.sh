@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Multi-process evaluation through torch.distributed (torchrun).
+# Follows MMDetection's tools/dist_test.sh (Copyright (c) OpenMMLab, Apache-2.0).
 #   bash tools/dist_test.sh CONFIG CHECKPOINT NUM_PROCS [test.py args...]
 set -euo pipefail
 CONFIG=$1

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Multi-process training through torch.distributed (torchrun).
+# Follows MMDetection's tools/dist_train.sh (Copyright (c) OpenMMLab, Apache-2.0).
 #   bash tools/dist_train.sh CONFIG NUM_PROCS [train.py args...]
 # Multi-node: set NNODES, NODE_RANK, MASTER_ADDR and MASTER_PORT on each node.
 # On CPU-only machines the gloo backend is used (MMEngine's default there).

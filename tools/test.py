@@ -1,5 +1,8 @@
 """Evaluate a checkpoint with cbnet_mmdet components registered.
 
+Follows MMDetection's ``tools/test.py`` (Copyright (c) OpenMMLab,
+Apache-2.0): same arguments and runner set-up.
+
 Usage::
 
     python tools/test.py CONFIG CHECKPOINT [--work-dir DIR] [--out RESULTS.pkl]

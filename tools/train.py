@@ -1,5 +1,8 @@
 """Train a detector with cbnet_mmdet components registered.
 
+Follows MMDetection's ``tools/train.py`` (Copyright (c) OpenMMLab,
+Apache-2.0): same arguments and runner set-up.
+
 Usage::
 
     python tools/train.py CONFIG [--work-dir DIR] [--resume [CKPT]] [--amp]

@@ -8,6 +8,8 @@ from mmdet.datasets import CityscapesDataset
 from pycocotools import mask as mask_utils
 from mmdet.registry import DATASETS
 
+from .transforms.load_image_from_file import with_checked_loader
+
 #: Missing images listed in the error message (the count is always given).
 MAX_LISTED = 5
 
@@ -31,6 +33,11 @@ class CBNetCityscapesDataset(CityscapesDataset):
       id and image - or when no training image is left after
       ``filter_cfg``.
 
+    Images are loaded with :class:`CBNetLoadImageFromFile` (missing,
+    corrupt or wrongly sized image: an error naming the file) wherever the
+    pipeline names MMCV's ``LoadImageFromFile`` - the name MMDetection's
+    ``DetInferencer`` and corruption benchmark look for in the config.
+
     Args:
         check_files (bool): Check at initialisation that every image
             exists (local files only; skipped with ``backend_args``).
@@ -40,6 +47,8 @@ class CBNetCityscapesDataset(CityscapesDataset):
 
     def __init__(self, *args, check_files: bool = True, **kwargs) -> None:
         self.check_files = check_files
+        if kwargs.get('pipeline'):
+            kwargs['pipeline'] = with_checked_loader(kwargs['pipeline'])
         super().__init__(*args, **kwargs)
 
     def load_data_list(self) -> List[dict]:

@@ -70,12 +70,31 @@ def evaluate_condition(cfg: Config, checkpoint: str, work_dir: str,
         dict[str, float]: The evaluators' metrics.
     """
     name = 'clear' if beta is None else f'foggy_beta_{beta}'
-    cfg = condition_cfg(cfg, beta)
+    return evaluate_checkpoint(condition_cfg(cfg, beta), checkpoint,
+                               work_dir, name, prefix='ap_drop')
+
+
+def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
+                        name: str, prefix: str = 'test') -> Dict[str, float]:
+    """``Runner.test`` of ``checkpoint`` with a test-only copy of ``cfg``.
+
+    Args:
+        cfg (Config): Test config (model, test dataloader and evaluator).
+        checkpoint (str): Checkpoint file.
+        work_dir (str): Runner work folder; the logs go to
+            ``{work_dir}/{name}``.
+        name (str): Name of this run (sub-folder, experiment name).
+        prefix (str): Experiment name prefix.
+
+    Returns:
+        dict[str, float]: The evaluators' metrics.
+    """
+    cfg = copy.deepcopy(cfg)
     cfg.load_from = checkpoint
     cfg.work_dir = osp.join(work_dir, name)
     # unique per run and condition: MMEngine keys its logger and message
     # hub by this name, and a process may test several checkpoints
-    cfg.experiment_name = f"{cfg.get('experiment_name') or 'ap_drop'}_{name}"
+    cfg.experiment_name = f"{cfg.get('experiment_name') or prefix}_{name}"
     cfg.pop('resume', None)
     # a test-only runner: nothing of training or validation is built
     for key in ('train_dataloader', 'train_cfg', 'optim_wrapper',

@@ -68,7 +68,7 @@ dataset_type = 'CBNetCityscapesDataset'
 data_root = 'data/cityscapes/'
 val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
 train_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     # shorter side 800-1024 of the 2048x1024 images (MMDet's recipe)
     dict(
@@ -79,7 +79,7 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     dict(

@@ -30,7 +30,7 @@ model = dict(
             type='Pretrained', checkpoint='open-mmlab://resnext101_64x4d')))
 
 train_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='LoadAnnotations', with_bbox=True),
     # shorter side 800-1024 of the 2048x1024 images (MMDet's recipe)
     dict(
@@ -41,7 +41,7 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True),
     dict(

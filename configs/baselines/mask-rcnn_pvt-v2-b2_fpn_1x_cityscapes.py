@@ -30,7 +30,7 @@ model = dict(
     neck=dict(in_channels=[64, 128, 320, 512]))
 
 train_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     # shorter side 800-1024 of the 2048x1024 images (MMDet's recipe)
     dict(
@@ -41,7 +41,7 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     dict(

@@ -56,7 +56,7 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='CBNetLoadImageFromFile'),
+    dict(type='LoadImageFromFile'),
     dict(type='Resize', scale=img_scale, keep_ratio=True),
     dict(
         type='Pad',
@@ -78,7 +78,7 @@ train_dataloader = dict(
             ann_file='annotations/instancesonly_filtered_gtFine_train.json',
             data_prefix=dict(img='leftImg8bit/train/'),
             pipeline=[
-                dict(type='CBNetLoadImageFromFile'),
+                dict(type='LoadImageFromFile'),
                 dict(type='LoadAnnotations', with_bbox=True)
             ],
             # images without instances stay (YOLOX's setting)

@@ -65,7 +65,7 @@ def test_baseline_config_data_and_evaluation(path):
         assert ds.type == 'CBNetCityscapesDataset'
         assert ds.data_root == 'data/cityscapes/'
     loaders = [train.pipeline[0], cfg.val_dataloader.dataset.pipeline[0]]
-    assert [t.type for t in loaders] == ['CBNetLoadImageFromFile'] * 2
+    assert [t.type for t in loaders] == ['LoadImageFromFile'] * 2
     evaluators = cfg.val_evaluator
     if isinstance(evaluators, dict):
         evaluators = [evaluators]

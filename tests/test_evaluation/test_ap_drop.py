@@ -3,12 +3,7 @@ import json
 import os.path as osp
 
 import pytest
-import torch
-from mmdet.models.detectors.base import BaseDetector
-from mmdet.registry import MODELS
 from mmengine.config import Config
-from mmengine.structures import InstanceData
-from torch import nn
 
 from cbnet_mmdet.evaluation.ap_drop import (condition_cfg, drop_table,
                                             to_markdown)
@@ -16,36 +11,6 @@ from cbnet_mmdet.evaluation.ap_drop import (condition_cfg, drop_table,
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
                'cityscapes_instance.py')
-SEEN = []
-
-
-@MODELS.register_module(name='_CBNetTestOracle', force=True)
-class _Oracle(BaseDetector):
-    """Predicts the ground truth of each image; records the image paths."""
-
-    def __init__(self, data_preprocessor=None):
-        super().__init__(data_preprocessor=data_preprocessor)
-        self.dummy = nn.Parameter(torch.zeros(1))
-
-    def predict(self, batch_inputs, batch_data_samples, rescale=True):
-        for sample in batch_data_samples:
-            SEEN.append(sample.img_path)
-            gt = sample.gt_instances
-            sample.pred_instances = InstanceData(
-                bboxes=getattr(gt.bboxes, 'tensor', gt.bboxes),
-                labels=gt.labels,
-                scores=torch.ones(len(gt)),
-                masks=gt.masks.to_tensor(torch.bool, 'cpu'))
-        return batch_data_samples
-
-    def loss(self, *args, **kwargs):
-        raise NotImplementedError
-
-    def _forward(self, *args, **kwargs):
-        raise NotImplementedError
-
-    def extract_feat(self, *args, **kwargs):
-        raise NotImplementedError
 
 
 def test_condition_cfg():
@@ -80,38 +45,18 @@ def test_drop_table_and_markdown():
     assert md[3].startswith('| foggy | 45.0 | 37.0 | - | 30.0 | 5.0 |')
 
 
-def test_ap_drop_end_to_end(cityscapes_like_root, tmp_path):
+def test_ap_drop_end_to_end(oracle, tmp_path):
     """Oracle model through Runner.test on clear and foggy val: the foggy
     run reads the foggy images; AP/mIoU 100 on both, drop 0."""
-    root = cityscapes_like_root + '/'
-    cfg = Config.fromfile(CFG)
-    cfg.default_scope = 'mmdet'
-    cfg.model = dict(type='_CBNetTestOracle',
-                     data_preprocessor=dict(type='DetDataPreprocessor'))
-    cfg.test_cfg = dict(type='TestLoop')
-    ds = cfg.test_dataloader.dataset
-    ds.data_root = root
-    ds.pipeline = [p for p in ds.pipeline if p['type'] != 'Resize']
-    cfg.test_dataloader.update(num_workers=0, persistent_workers=False)
-    for m in cfg.test_evaluator:
-        m['ann_file'] = root + 'annotations/' \
-            'instancesonly_filtered_gtFine_val.json'
-        if m['type'] == 'CBNetInstanceMIoUMetric':
-            m['ignore_crowd'] = True  # the oracle predicts no crowds
-    cfg.log_level = 'WARNING'
-    ckpt = str(tmp_path / 'oracle.pth')
-    torch.save({'state_dict': {'dummy': torch.zeros(1)}}, ckpt)
-    cfg_file = str(tmp_path / 'oracle_cfg.py')
-    cfg.dump(cfg_file)
     spec = importlib.util.spec_from_file_location(
         'ap_drop_tool', osp.join(ROOT, 'tools', 'analysis_tools',
                                  'ap_drop.py'))
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
-    SEEN.clear()
     out = tmp_path / 'out'
-    table = tool.main([cfg_file, ckpt, '--betas', '0.01', '0.02',
-                       '--out-dir', str(out)])
+    table = tool.main([oracle['cfg_file'], oracle['ckpt'], '--betas', '0.01',
+                       '0.02', '--out-dir', str(out)])
+    SEEN = [path for path, _ in oracle['seen']]
     assert len(SEEN) == 9
     assert all('/leftImg8bit/val/' in p for p in SEEN[:3])
     assert all(p.endswith('_foggy_beta_0.01.png') for p in SEEN[3:6])

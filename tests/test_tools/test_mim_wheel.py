@@ -5,6 +5,7 @@ throw-away target folder that is put first on PYTHONPATH, and runs mim on
 the demo config found by its bare name inside the installed package
 (`cbnet_mmdet/.mim/configs`), on the tiny generated dataset.
 """
+import json
 import os
 import os.path as osp
 import shutil
@@ -43,6 +44,18 @@ def wheel(tmp_path_factory):
     return whl
 
 
+def _install(wheel, site):
+    subprocess.run([
+        sys.executable, '-m', 'pip', 'install', '--no-deps', '-q',
+        '--target',
+        str(site),
+        str(wheel)
+    ], check=True)
+    env = dict(os.environ, PYTHONPATH=str(site))
+    env.pop('LOCAL_RANK', None)
+    return env
+
+
 def test_wheel_carries_mim_configs_and_tools(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for path in ('cbnet_mmdet/.mim/tools/train.py',
@@ -51,7 +64,11 @@ def test_wheel_carries_mim_configs_and_tools(wheel):
                  'cbnet_mmdet/.mim/configs/cbnet_cityscapes.py',
                  f'cbnet_mmdet/.mim/configs/demo/{DEMO}',
                  'cbnet_mmdet/.mim/configs/_base_/models/'
-                 'cbnet_mit-b5_nasfpn_crpn_cascade.py'):
+                 'cbnet_mit-b5_nasfpn_crpn_cascade.py',
+                 'cbnet_mmdet/.mim/model-index.yml',
+                 'cbnet_mmdet/.mim/configs/cbnet/metafile.yml',
+                 'cbnet_mmdet/.mim/configs/baselines/metafile.yml',
+                 'cbnet_mmdet/.mim/configs/demo/metafile.yml'):
         assert path in names, path
     # real files, not links, and no byte code or tests
     assert not any('__pycache__' in n or n.startswith('tests/')
@@ -62,18 +79,11 @@ def test_wheel_carries_mim_configs_and_tools(wheel):
 def test_mim_train_and_test_from_installed_wheel(
         wheel, tmp_path, cityscapes_like_root):
     site = tmp_path / 'site'
-    subprocess.run([
-        sys.executable, '-m', 'pip', 'install', '--no-deps', '-q',
-        '--target',
-        str(site),
-        str(wheel)
-    ], check=True)
+    env = _install(wheel, site)
     # run where the demo config's relative data_root resolves to the
     # tiny generated dataset, and where the source tree is not importable
     os.makedirs(tmp_path / 'data')
     os.symlink(cityscapes_like_root, tmp_path / 'data' / 'cityscapes_like')
-    env = dict(os.environ, PYTHONPATH=str(site))
-    env.pop('LOCAL_RANK', None)
     work = tmp_path / 'work'
     shrink = [
         'train_dataloader.batch_size=2', 'train_cfg.max_epochs=2',
@@ -102,3 +112,58 @@ def test_mim_train_and_test_from_installed_wheel(
     assert test.returncode == 0, out[-4000:]
     assert osp.join(pkg, 'tools', 'test.py') in out
     assert 'coco/segm_mAP' in out and 'cityscapes/mIoU' in out
+
+
+@pytest.mark.slow  # builds the wheel (shared with the test above)
+def test_mim_search_lists_the_model_index(wheel, tmp_path):
+    """`mim search cbnet_mmdet` reads the index from the installed wheel."""
+    env = _install(wheel, tmp_path / 'site')
+    mim = osp.join(BIN, 'mim')
+    out = subprocess.run([mim, 'search', 'cbnet_mmdet', '--valid-config'],
+                         cwd=tmp_path, env=env, capture_output=True,
+                         text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
+    for name in ('cbnet_cityscapes',
+                 'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes',
+                 'cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes',
+                 'cbnet-dd_mit-b5_nasfpn-crpn_8xb1-12e_foggy-cityscapes',
+                 'cbnet_mit-b5_ablation-ce_foggy-cityscapes',
+                 'cbnet_mit-b5_ablation-shape-edge-kd_foggy-cityscapes',
+                 'yolox_s_8xb8-300e_cityscapes',
+                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like'):
+        assert f"'{name}'" in out.stdout, name
+    out = subprocess.run(
+        [mim, 'search', 'cbnet_mmdet', '--config', 'cbnet_cityscapes'],
+        cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
+    text = ' '.join(out.stdout.split())
+    assert 'cityscapes (paper, table 1)/ap 41.4' in text, out.stdout
+
+
+@pytest.mark.slow  # builds a second wheel: ~30 s
+def test_wheel_installs_into_an_existing_mmdet_environment(tmp_path):
+    """pip, offline, into this environment (torch, mmcv, mmdet present):
+    every requirement is met by what is installed and only cbnet_mmdet
+    would be installed (torch, mmcv, mmdet untouched). The wheel gets a
+    local version so that pip does not take the project's own installed
+    copy as already satisfying it."""
+    src = tmp_path / 'src'
+    _copy_sources(src)
+    (src / 'cbnet_mmdet' / 'version.py').write_text(
+        "__version__ = '0.1.0+existingenv'\n")
+    subprocess.run([
+        sys.executable, '-m', 'pip', 'wheel', '--no-deps',
+        '--no-build-isolation', '-q', '-w',
+        str(tmp_path / 'dist'),
+        str(src)
+    ], check=True)
+    (whl, ) = (tmp_path / 'dist').glob('cbnet_mmdet-*.whl')
+    report = subprocess.run([
+        sys.executable, '-m', 'pip', 'install', '--dry-run', '--no-index',
+        '--report', '-', '-q',
+        str(whl)
+    ], capture_output=True, text=True)
+    assert report.returncode == 0, report.stderr[-3000:]
+    installs = json.loads(report.stdout)['install']
+    assert [(i['metadata']['name'], i['metadata']['version'])
+            for i in installs] == [('cbnet_mmdet', '0.1.0+existingenv')]

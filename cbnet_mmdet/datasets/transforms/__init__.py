@@ -1,4 +1,8 @@
-from .load_image_from_file import CBNetLoadImageFromFile
+from .load_image_from_file import (CBNetLoadImageFromFile,
+                                   with_checked_loader)
 from .paired_loading import CBNetLoadPairedImageFromFile
 
-__all__ = ['CBNetLoadImageFromFile', 'CBNetLoadPairedImageFromFile']
+__all__ = [
+    'CBNetLoadImageFromFile', 'CBNetLoadPairedImageFromFile',
+    'with_checked_loader'
+]

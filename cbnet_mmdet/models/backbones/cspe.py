@@ -1,8 +1,8 @@
 """Contextual-spatial position encoding (CSPE), formula (1) of the paper.
 
-Our reading of formula (1) (see SPEC.md) adds a contextual relative
-position term, in the "product" form of iRPE (Wu et al., ICCV 2021), to the
-attention logits of every MiT block::
+Our reading of formula (1) (docs/design_readings.md) adds a contextual
+relative position term, in the "product" form of iRPE (Wu et al., ICCV
+2021), to the attention logits of every MiT block::
 
     e_ij = (x_i W^Q)(x_j W^K)^T / sqrt(d) + (x_i W^Q) r_ij^T / sqrt(d)
 

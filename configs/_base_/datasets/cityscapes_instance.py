@@ -11,8 +11,11 @@ data_root = 'data/cityscapes/'
 backend_args = None
 val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
 
+# MMCV's loader name, which MMDet's DetInferencer and corruption benchmark
+# look for; the CBNet datasets load with CBNetLoadImageFromFile (errors
+# naming the file) in its place
 train_pipeline = [
-    dict(type='CBNetLoadImageFromFile', backend_args=backend_args),
+    dict(type='LoadImageFromFile', backend_args=backend_args),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     # multi-scale training, shorter side 800-1024 of the 2048x1024 images
     # (MMDet's Cityscapes recipe)
@@ -24,7 +27,7 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='CBNetLoadImageFromFile', backend_args=backend_args),
+    dict(type='LoadImageFromFile', backend_args=backend_args),
     # full resolution
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),

@@ -1,6 +1,6 @@
 # The paper's schedule: 12 epochs, AdamW, polynomial decay. The paper's
 # initial lr is garbled ("6 x 10^-?"); 6e-5 with weight decay 0.01 is
-# SegFormer's MiT recipe, which the paper follows (SPEC.md).
+# SegFormer's MiT recipe, which the paper follows (docs/design_readings.md).
 max_epochs = 12
 train_cfg = dict(
     type='EpochBasedTrainLoop', max_epochs=max_epochs, val_interval=1)
