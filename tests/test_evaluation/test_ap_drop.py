@@ -1,7 +1,9 @@
 import importlib.util
 import json
+from collections import Counter
 import os.path as osp
 
+import numpy as np
 import pytest
 import torch
 from mmdet.models.detectors.base import BaseDetector
@@ -17,11 +19,17 @@ ROOT = osp.join(osp.dirname(__file__), '..', '..')
 CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
                'cityscapes_instance.py')
 SEEN = []
+#: Per fog density, how many instances of each image (the first ones, in
+#: annotation order) the oracle leaves out on the foggy images: a known AP
+#: drop, larger for the denser fog.
+DROPPED = {'0.01': 1, '0.02': 2}
 
 
 @MODELS.register_module(name='_CBNetTestOracle', force=True)
 class _Oracle(BaseDetector):
-    """Predicts the ground truth of each image; records the image paths."""
+    """Predicts the ground truth of each image, without the first
+    ``DROPPED[beta]`` instances on the foggy images of that beta; records
+    the image paths."""
 
     def __init__(self, data_preprocessor=None):
         super().__init__(data_preprocessor=data_preprocessor)
@@ -31,6 +39,9 @@ class _Oracle(BaseDetector):
         for sample in batch_data_samples:
             SEEN.append(sample.img_path)
             gt = sample.gt_instances
+            for beta, num in DROPPED.items():
+                if sample.img_path.endswith(f'_foggy_beta_{beta}.png'):
+                    gt = gt[num:]
             sample.pred_instances = InstanceData(
                 bboxes=getattr(gt.bboxes, 'tensor', gt.bboxes),
                 labels=gt.labels,
@@ -80,10 +91,39 @@ def test_drop_table_and_markdown():
     assert md[3].startswith('| foggy | 45.0 | 37.0 | - | 30.0 | 5.0 |')
 
 
+def expected_ap(coco: dict, num_dropped: int) -> float:
+    """COCO mAP (percent) of exact predictions (score 1, IoU 1 at every
+    threshold) of all non-crowd instances but the first ``num_dropped`` of
+    each image: per category with ground truth, the precision is 1 up to
+    the recall ``m / n`` (``m`` of its ``n`` instances predicted) and 0
+    beyond, so its AP is the share of COCO's 101 recall thresholds
+    ``<= m / n`` (0 when ``m = 0``: no precision at all, not even at
+    recall 0); the mean is over the categories with ground truth."""
+    seen = Counter()
+    kept = Counter()
+    total = Counter()
+    for ann in coco['annotations']:  # annotation order = instance order
+        if ann['iscrowd']:
+            continue
+        seen[ann['image_id']] += 1
+        total[ann['category_id']] += 1
+        kept[ann['category_id']] += seen[ann['image_id']] > num_dropped
+    rec_thrs = np.linspace(0, 1, 101)
+    aps = [(rec_thrs <= kept[c] / total[c]).sum() / 101 if kept[c] else 0.
+           for c in total]
+    return 100 * float(np.mean(aps))
+
+
 def test_ap_drop_end_to_end(cityscapes_like_root, tmp_path):
     """Oracle model through Runner.test on clear and foggy val: the foggy
-    run reads the foggy images; AP/mIoU 100 on both, drop 0."""
+    run reads the foggy images; AP/mIoU 100 on clear, and on foggy the
+    drop of the instances the oracle leaves out there (the first one of
+    each image at beta 0.01, the first two at 0.02): a known AP drop,
+    larger for the denser fog."""
     root = cityscapes_like_root + '/'
+    ann_file = root + 'annotations/instancesonly_filtered_gtFine_val.json'
+    with open(ann_file) as f:
+        coco = json.load(f)
     cfg = Config.fromfile(CFG)
     cfg.default_scope = 'mmdet'
     cfg.model = dict(type='_CBNetTestOracle',
@@ -94,8 +134,7 @@ def test_ap_drop_end_to_end(cityscapes_like_root, tmp_path):
     ds.pipeline = [p for p in ds.pipeline if p['type'] != 'Resize']
     cfg.test_dataloader.update(num_workers=0, persistent_workers=False)
     for m in cfg.test_evaluator:
-        m['ann_file'] = root + 'annotations/' \
-            'instancesonly_filtered_gtFine_val.json'
+        m['ann_file'] = ann_file
         if m['type'] == 'CBNetInstanceMIoUMetric':
             m['ignore_crowd'] = True  # the oracle predicts no crowds
     cfg.log_level = 'WARNING'
@@ -119,9 +158,20 @@ def test_ap_drop_end_to_end(cityscapes_like_root, tmp_path):
     assert [r['condition'] for r in table['rows']] == [
         'clear', 'foggy beta=0.01', 'foggy beta=0.02'
     ]
-    for row in table['rows']:
-        assert row['mask AP'] == row['box AP'] == row['mIoU'] == 100.0
-        assert row['mask AP drop'] == 0.0
+    clear, fog1, fog2 = table['rows']
+    assert clear['mask AP'] == clear['box AP'] == clear['mIoU'] == 100.0
+    assert clear['mask AP drop'] == clear['mIoU drop'] == 0.0
+    for row, beta in ((fog1, '0.01'), (fog2, '0.02')):
+        ap = expected_ap(coco, DROPPED[beta])
+        assert 0 < ap < 100
+        for col in ('box AP', 'mask AP'):
+            assert row[col] == pytest.approx(ap, abs=1e-6), (beta, col)
+            assert row[f'{col} drop'] == pytest.approx(100 - ap, abs=1e-6)
+        assert row['mIoU drop'] == pytest.approx(100 - row['mIoU'])
+    # denser fog, more instances missed: larger drops (a swapped row or a
+    # sign error fails here)
+    assert 0 < fog1['mIoU drop'] < fog2['mIoU drop']
+    assert 0 < fog1['mask AP drop'] < fog2['mask AP drop']
     with open(out / 'ap_drop.json') as f:
         assert json.load(f)['rows'] == table['rows']
     assert (out / 'ap_drop.md').read_text().startswith('| condition |')
