@@ -247,8 +247,8 @@ def test_usable_as_fcn_mask_head_loss():
                           [g.masks for g in gt], ConfigDict(mask_size=14))
     torch.testing.assert_close(out['mask_targets'], targets)
     labels = torch.cat([s.pos_gt_labels for s in sampling]).numpy()
-    logits = mask_preds.detach().double().numpy()[np.arange(num_pos),
-                                                   labels]
+    logits = mask_preds.detach().double().numpy()
+    logits = logits[np.arange(num_pos), labels]
     probs = 1 / (1 + np.exp(-logits))
     np_targets = targets.double().numpy()
     expected = (np_bce(logits, np_targets) + 1 - np_dice(probs, np_targets) +
