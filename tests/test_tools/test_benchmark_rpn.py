@@ -2,9 +2,13 @@
 one training iteration of each head at 64x32, recall and timing."""
 import json
 
+import pytest
+
 from tool_helpers import load_tool
 
 
+# 19 s on 2 cores at load ~3, 51 s at load ~9 (model builds, COCO recall)
+@pytest.mark.slow
 def test_one_iteration_per_head(tmp_path):
     tool = load_tool('analysis_tools/benchmark_rpn.py')
     out = tmp_path / 'rpn.json'
