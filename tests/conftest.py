@@ -7,11 +7,26 @@ JSON under ``{root}/annotations/instancesonly_filtered_gtFine_{split}.json``.
 Generated once per test session (about 2 s) into its own temporary folder
 (not pytest's ``tmp_path_factory``, whose old numbered folders a concurrent
 pytest run may delete), removed at the end of the session.
+
+``restore_environ``: puts ``os.environ`` back as it was after the test (for
+tests that run a tool's ``main``/``parse_args``, which export
+``LOCAL_RANK`` as launchers expect).
+
+Every test module must leave ``os.environ`` as it found it
+(``environment_unchanged``, autouse): a leaked variable (``LOCAL_RANK``,
+``MASTER_PORT``...) changes how later tests and the tools they run behave.
 """
+import os
 import os.path as osp
+import socket
 import tempfile
 
+import cv2  # noqa: F401  (see below)
 import pytest
+
+# cv2's import exports LD_LIBRARY_PATH and QT_QPA_* once per process:
+# imported here, before any module's environment snapshot, so that the
+# first test to load an image is not reported as leaking them.
 
 #: Parameters of the tiny dataset (tests may rely on them).
 TINY = dict(num_train=4, num_val=3, img_size=(128, 256), seed=0,
@@ -31,3 +46,61 @@ def cityscapes_like_root():
             osp.join(root, 'annotations',
                      'instancesonly_filtered_gtFine_val.json'))
         yield root
+
+
+@pytest.fixture
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 right now (for ``MASTER_PORT``; a fixed
+    port collides with concurrent test runs)."""
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
+
+
+#: Variables the test run's own machinery sets, not the tests: pytest (the
+#: running test and phase) and torch (its inductor cache folder, exported
+#: once per process on first use, whichever test that is).
+NOT_CHECKED = ('PYTEST_CURRENT_TEST', 'TORCHINDUCTOR_CACHE_DIR')
+
+
+def environ_diff(before: dict, after: dict) -> list:
+    """Names added, removed or changed between two environment copies
+    (:data:`NOT_CHECKED` aside)."""
+    return sorted(k for k in before.keys() | after.keys()
+                  if before.get(k) != after.get(k) and k not in NOT_CHECKED)
+
+
+def restore_environment(saved: dict) -> dict:
+    """Put ``os.environ`` back to ``saved``.
+
+    Returns:
+        dict: The changed variables and the values they had (None: unset).
+    """
+    changed = environ_diff(saved, dict(os.environ))
+    leaked = {k: os.environ.get(k) for k in changed}
+    for key in changed:
+        if key in saved:
+            os.environ[key] = saved[key]
+        else:
+            del os.environ[key]
+    return leaked
+
+
+@pytest.fixture
+def restore_environ():
+    """Restore ``os.environ`` after the test, whatever the test set."""
+    saved = dict(os.environ)
+    yield
+    restore_environment(saved)
+
+
+@pytest.fixture(scope='module', autouse=True)
+def environment_unchanged(request):
+    """Fail the module whose tests leave ``os.environ`` changed (then put
+    it back, so that one leak does not spread to the next modules)."""
+    saved = dict(os.environ)
+    yield
+    leaked = restore_environment(saved)
+    if leaked:
+        pytest.fail(f'{request.module.__name__} left os.environ changed: '
+                    f'{leaked} (use monkeypatch.setenv or restore_environ)')

@@ -13,11 +13,14 @@ import argparse
 import os
 import os.path as osp
 
+import torch
 from mmengine.config import Config, DictAction
 from mmengine.registry import RUNNERS
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
+                                               use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
 
 
@@ -73,6 +76,8 @@ def build_cfg(args) -> Config:
         cfg.test_evaluator = _as_list(cfg.test_evaluator) + [
             dict(type='DumpDetResults', out_file_path=args.out)
         ]
+    if args.launcher != 'none' and not torch.cuda.is_available():
+        use_gloo_on_cpu(cfg)
     return cfg
 
 
@@ -84,6 +89,7 @@ def main(argv=None):
     args = parse_args(argv)
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
+    init_gloo_process_group(cfg)
     if 'runner_type' not in cfg:
         runner = Runner.from_cfg(cfg)
     else:

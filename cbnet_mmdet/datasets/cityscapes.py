@@ -45,6 +45,9 @@ class CBNetCityscapesDataset(CityscapesDataset):
         **kwargs: ``CityscapesDataset`` / ``CocoDataset`` arguments.
     """
 
+    #: Data-info keys of the image files ``check_files`` looks for.
+    image_path_keys = ('img_path', )
+
     def __init__(self, *args, check_files: bool = True, **kwargs) -> None:
         self.check_files = check_files
         if kwargs.get('pipeline'):
@@ -113,8 +116,8 @@ class CBNetCityscapesDataset(CityscapesDataset):
                 f'image folder not found: {folder} (data_root + '
                 f'data_prefix.img of {type(self).__name__})')
         missing = [
-            info['img_path'] for info in data_list
-            if not osp.isfile(info['img_path'])
+            info[key] for info in data_list for key in self.image_path_keys
+            if not osp.isfile(info[key])
         ]
         if missing:
             listed = '\n  '.join(missing[:MAX_LISTED])

@@ -1,9 +1,9 @@
 """Cityscapes scenes as (foggy, clear) pairs for CBNet-DD."""
 from typing import Iterator
 
-from mmdet.datasets import CityscapesDataset
 from mmdet.registry import DATASETS
 
+from .cityscapes import CBNetCityscapesDataset
 from .cityscapes_paths import beta_str, foggy_path
 
 #: Transforms that change pixel values per channel group or assume 3
@@ -38,11 +38,13 @@ def iter_transforms(transform) -> Iterator:
 
 
 @DATASETS.register_module()
-class CBNetPairedFoggyDataset(CityscapesDataset):
+class CBNetPairedFoggyDataset(CBNetCityscapesDataset):
     """Cityscapes instance annotations with each image's foggy twin.
 
-    Reads the same COCO-format annotations as MMDetection's
-    ``CityscapesDataset`` (clear ``leftImg8bit`` file names) and adds
+    Reads the same COCO-format annotations as
+    :class:`CBNetCityscapesDataset` (clear ``leftImg8bit`` file names), with
+    the same checks and error messages for malformed annotations, missing
+    files (clear AND foggy images) and empty training sets, and adds
     ``foggy_img_path`` (``leftImg8bit_foggy/..._foggy_beta_{beta}.png``) to
     every data info. Use it with ``CBNetLoadPairedImageFromFile``, which
     stacks both images so that geometric transforms apply to both alike;
@@ -52,9 +54,12 @@ class CBNetPairedFoggyDataset(CityscapesDataset):
     Args:
         beta (float): Fog density of Foggy Cityscapes: 0.005, 0.01 or 0.02.
             Defaults to 0.02.
-        **kwargs: Forwarded to ``CityscapesDataset`` (``ann_file``,
-            ``data_root``, ``data_prefix``, ``pipeline`` ...).
+        **kwargs: Forwarded to :class:`CBNetCityscapesDataset`
+            (``ann_file``, ``data_root``, ``data_prefix``, ``pipeline``,
+            ``check_files`` ...).
     """
+
+    image_path_keys = ('img_path', 'foggy_img_path')
 
     def __init__(self, *args, beta: float = 0.02, **kwargs) -> None:
         beta_str(beta)  # raises on an unreleased beta

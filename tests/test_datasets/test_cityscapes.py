@@ -4,11 +4,14 @@ import os.path as osp
 import re
 import shutil
 
+import cv2
 import pytest
+from mmengine.config import Config
 from mmengine.registry import init_default_scope
 
 from cbnet_mmdet.datasets import (CBNetCityscapesDataset,
-                                  CBNetFoggyCityscapesDataset)
+                                  CBNetFoggyCityscapesDataset,
+                                  CBNetPairedFoggyDataset)
 
 ANN = 'annotations/instancesonly_filtered_gtFine_val.json'
 init_default_scope('mmdet')
@@ -19,10 +22,10 @@ PIPELINE = [
 ]
 
 
-def _dataset(root, cls=CBNetCityscapesDataset, **kw):
+def _dataset(root, cls=CBNetCityscapesDataset, pipeline=PIPELINE, **kw):
     kw.setdefault('ann_file', ANN)
     return cls(data_root=root, data_prefix=dict(img='leftImg8bit/val/'),
-               test_mode=True, pipeline=PIPELINE, **kw)
+               test_mode=True, pipeline=pipeline, **kw)
 
 
 def test_reads_converted_annotations(cityscapes_like_root):
@@ -118,3 +121,108 @@ def test_corrupt_image_in_pipeline(broken_root):
         f.write(data[:len(data) // 2])
     with pytest.raises(ValueError, match=re.escape(path)):
         ds[0]
+
+
+# --------------------------------------------------------------------------
+# Malformed input: one check, one exact message (file, annotation id, what)
+# --------------------------------------------------------------------------
+#: Every dataset of the package that reads the converter's COCO JSON: the
+#: same checks and messages in each (the paired CBNet-DD one included).
+DATASET_CLASSES = {
+    'clear': (CBNetCityscapesDataset, {}),
+    'foggy': (CBNetFoggyCityscapesDataset, dict(beta=0.02)),
+    'paired': (CBNetPairedFoggyDataset, dict(beta=0.02)),
+}
+#: Id given to the mutated annotation, so that the message must name it.
+BAD_ID = 4242
+
+
+def mutate_annotation(root: str, field: str, value) -> tuple:
+    """Set ``field`` of the first annotation of the first image that has
+    one, and give that annotation the id :data:`BAD_ID`.
+
+    Returns:
+        tuple[str, dict]: The annotation file and the image entry.
+    """
+    path = osp.join(root, ANN)
+    with open(path) as f:
+        coco = json.load(f)
+    ann = coco['annotations'][0]
+    image = next(im for im in coco['images'] if im['id'] == ann['image_id'])
+    assert all(a['id'] != BAD_ID for a in coco['annotations'])
+    ann.update({'id': BAD_ID, field: value})
+    with open(path, 'w') as f:
+        json.dump(coco, f)
+    return path, image
+
+
+@pytest.mark.parametrize('kind', sorted(DATASET_CLASSES))
+@pytest.mark.parametrize('field,value,problem', [
+    ('bbox', [1.0, 2.0, 3.0],
+     'bbox must be 4 finite numbers [x, y, w, h], got [1.0, 2.0, 3.0]'),
+    ('bbox', [1.0, float('nan'), 3.0, 4.0],
+     'bbox must be 4 finite numbers [x, y, w, h], got [1.0, nan, 3.0, 4.0]'),
+    ('bbox', 'abc', "bbox must be 4 finite numbers [x, y, w, h], got 'abc'"),
+    ('segmentation', [[1.0, 1.0, 5.0, 5.0]],
+     'polygons need an even number (>= 6) of coordinates, got '
+     '[1.0, 1.0, 5.0, 5.0]'),
+    ('segmentation', [[1.0, 1.0, 9.0, 1.0, 9.0]],
+     'polygons need an even number (>= 6) of coordinates, got '
+     '[1.0, 1.0, 9.0, 1.0, 9.0]'),
+    ('segmentation', dict(size=[7, 9], counts='0`0'),
+     'RLE size [7, 9] is not the image size [128, 256]'),
+    ('segmentation', dict(size=[128, 256], counts='!!!!'),
+     "undecodable RLE counts '!!!!'"),
+    ('segmentation', [], 'empty segmentation'),
+    ('segmentation', 7, 'segmentation must be polygons or RLE, got int'),
+])
+def test_malformed_annotation_message(broken_root, kind, field, value,
+                                      problem):
+    cls, kwargs = DATASET_CLASSES[kind]
+    ann_file, image = mutate_annotation(broken_root, field, value)
+    with pytest.raises(ValueError) as excinfo:
+        _dataset(broken_root, cls, **kwargs)
+    assert str(excinfo.value) == (
+        f'annotation file {ann_file}: annotation {BAD_ID} of image '
+        f"{image['file_name']!r} (id {image['id']}): {problem}")
+
+
+@pytest.mark.parametrize('kind', sorted(DATASET_CLASSES))
+def test_no_training_image_left_message(broken_root, kind):
+    cls, kwargs = DATASET_CLASSES[kind]
+    path = osp.join(broken_root, ANN)
+    with open(path) as f:
+        coco = json.load(f)
+    for ann in coco['annotations']:
+        ann['iscrowd'] = 1
+    with open(path, 'w') as f:
+        json.dump(coco, f)
+    filter_cfg = dict(filter_empty_gt=True, min_size=32)
+    with pytest.raises(ValueError) as excinfo:
+        cls(data_root=broken_root, ann_file=ANN,
+            data_prefix=dict(img='leftImg8bit/val/'), test_mode=False,
+            filter_cfg=filter_cfg, pipeline=PIPELINE, **kwargs)
+    assert str(excinfo.value) == (
+        f'no training image left from {path} ({len(coco["images"])} listed)'
+        f' after filter_cfg={filter_cfg} (images without non-crowd '
+        f'instances are dropped)')
+
+
+def demo_train_pipeline() -> list:
+    """The demo config's training pipeline (its own loading transform)."""
+    cfg = Config.fromfile(osp.join(
+        osp.dirname(__file__), '..', '..', 'configs', 'demo',
+        'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'))
+    return cfg.train_pipeline
+
+
+def test_image_size_differs_from_annotation_message(broken_root):
+    ds = _dataset(broken_root, pipeline=demo_train_pipeline())
+    info = ds.get_data_info(0)
+    path = info['img_path']
+    cv2.imwrite(path, cv2.imread(path)[:40, :60])
+    with pytest.raises(ValueError) as excinfo:
+        ds[0]
+    assert str(excinfo.value) == (
+        f"image {path} is 40x60 (HxW) but its annotations say "
+        f"{info['height']}x{info['width']}")

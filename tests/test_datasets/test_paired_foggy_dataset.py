@@ -1,6 +1,10 @@
 import json
+import os
 import os.path as osp
+import re
+import shutil
 
+import cv2
 import pytest
 from mmdet.registry import DATASETS
 
@@ -31,6 +35,7 @@ def ann_file(tmp_path):
 
 
 def build(ann_file, pipeline=(), **kwargs):
+    kwargs.setdefault('check_files', False)  # no pixels in `ann_file`
     return DATASETS.build(
         dict(
             type='CBNetPairedFoggyDataset',
@@ -77,3 +82,43 @@ def test_rejects_photometric_and_bad_beta(ann_file):
         dict(type='RandomFlip', prob=0.5),
         dict(type='RandomCrop', crop_size=(16, 16))
     ])
+
+
+@pytest.fixture
+def paired_copy(cityscapes_like_root, tmp_path):
+    root = str(tmp_path / 'cs')
+    shutil.copytree(cityscapes_like_root, root,
+                    ignore=shutil.ignore_patterns('gtFine', 'depth'))
+    return root
+
+
+def build_val(root, **kwargs):
+    return DATASETS.build(
+        dict(type='CBNetPairedFoggyDataset',
+             ann_file='annotations/instancesonly_filtered_gtFine_val.json',
+             data_root=root, data_prefix=dict(img='leftImg8bit/val/'),
+             test_mode=True, **kwargs))
+
+
+@pytest.mark.parametrize('which', ['img_path', 'foggy_img_path'])
+def test_missing_clear_or_foggy_image_names_it(paired_copy, which):
+    path = build_val(paired_copy).get_data_info(1)[which]
+    os.remove(path)
+    with pytest.raises(FileNotFoundError,
+                       match=r'^1 image\(s\) listed in .* are missing, '
+                       r'e\.g\.:\n  ' + re.escape(path) + '$'):
+        build_val(paired_copy)
+    build_val(paired_copy, check_files=False)  # opt out
+
+
+def test_image_size_differs_from_annotation(paired_copy):
+    ds = build_val(paired_copy, pipeline=[
+        dict(type='CBNetLoadPairedImageFromFile')])
+    info = ds.get_data_info(0)
+    for key in ('img_path', 'foggy_img_path'):  # both halves agree
+        cv2.imwrite(info[key], cv2.imread(info[key])[:40, :60])
+    with pytest.raises(ValueError) as excinfo:
+        ds[0]
+    assert str(excinfo.value) == (
+        f"CBNetLoadPairedImageFromFile: image {info['img_path']} is 40x60 "
+        f"(HxW) but its annotations say {info['height']}x{info['width']}")

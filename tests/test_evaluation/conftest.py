@@ -19,16 +19,25 @@ SEEN = []
 
 @MODELS.register_module(name='_CBNetTestOracle', force=True)
 class _Oracle(BaseDetector):
-    """Predicts the ground truth of each image; records what it is given."""
+    """Predicts the ground truth of each image; records what it is given.
 
-    def __init__(self, data_preprocessor=None):
+    ``drop_on_foggy`` ({beta as str: n}): on the foggy images of that beta
+    the first ``n`` instances (annotation order) are left out, so the AP
+    drop is a known non-zero number.
+    """
+
+    def __init__(self, data_preprocessor=None, drop_on_foggy=None):
         super().__init__(data_preprocessor=data_preprocessor)
         self.dummy = nn.Parameter(torch.zeros(1))
+        self.drop_on_foggy = dict(drop_on_foggy or {})
 
     def predict(self, batch_inputs, batch_data_samples, rescale=True):
         for img, sample in zip(batch_inputs, batch_data_samples):
             SEEN.append((sample.img_path, img.clone()))
             gt = sample.gt_instances
+            for beta, num in self.drop_on_foggy.items():
+                if sample.img_path.endswith(f'_foggy_beta_{beta}.png'):
+                    gt = gt[num:]
             sample.pred_instances = InstanceData(
                 bboxes=getattr(gt.bboxes, 'tensor', gt.bboxes),
                 labels=gt.labels,
@@ -47,14 +56,26 @@ class _Oracle(BaseDetector):
 
 
 @pytest.fixture
-def oracle(cityscapes_like_root, tmp_path):
+def make_oracle(cityscapes_like_root, tmp_path):
+    """Factory of :func:`oracle` setups, ``drop_on_foggy`` as the model's."""
+    return lambda drop_on_foggy=None: _oracle_setup(
+        cityscapes_like_root, tmp_path, drop_on_foggy)
+
+
+@pytest.fixture
+def oracle(make_oracle):
     """The Cityscapes dataset config with the oracle on the tiny set (no
     resize), as a file, with a checkpoint; ``seen`` is cleared."""
+    return make_oracle()
+
+
+def _oracle_setup(cityscapes_like_root, tmp_path, drop_on_foggy):
     root = cityscapes_like_root + '/'
     cfg = Config.fromfile(DATASET_CFG)
     cfg.default_scope = 'mmdet'
     cfg.model = dict(type='_CBNetTestOracle',
-                     data_preprocessor=dict(type='DetDataPreprocessor'))
+                     data_preprocessor=dict(type='DetDataPreprocessor'),
+                     drop_on_foggy=drop_on_foggy)
     cfg.test_cfg = dict(type='TestLoop')
     ds = cfg.test_dataloader.dataset
     ds.data_root = root

@@ -1,7 +1,9 @@
 import importlib.util
 import json
 import os.path as osp
+from collections import Counter
 
+import numpy as np
 import pytest
 from mmengine.config import Config
 
@@ -11,6 +13,10 @@ from cbnet_mmdet.evaluation.ap_drop import (condition_cfg, drop_table,
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
                'cityscapes_instance.py')
+#: Per fog density, how many instances of each image (the first ones, in
+#: annotation order) the oracle leaves out on the foggy images: a known AP
+#: drop, larger for the denser fog.
+DROPPED = {'0.01': 1, '0.02': 2}
 
 
 def test_condition_cfg():
@@ -45,9 +51,40 @@ def test_drop_table_and_markdown():
     assert md[3].startswith('| foggy | 45.0 | 37.0 | - | 30.0 | 5.0 |')
 
 
-def test_ap_drop_end_to_end(oracle, tmp_path):
+def expected_ap(coco: dict, num_dropped: int) -> float:
+    """COCO mAP (percent) of exact predictions (score 1, IoU 1 at every
+    threshold) of all non-crowd instances but the first ``num_dropped`` of
+    each image: per category with ground truth, the precision is 1 up to
+    the recall ``m / n`` (``m`` of its ``n`` instances predicted) and 0
+    beyond, so its AP is the share of COCO's 101 recall thresholds
+    ``<= m / n`` (0 when ``m = 0``: no precision at all, not even at
+    recall 0); the mean is over the categories with ground truth."""
+    seen = Counter()
+    kept = Counter()
+    total = Counter()
+    for ann in coco['annotations']:  # annotation order = instance order
+        if ann['iscrowd']:
+            continue
+        seen[ann['image_id']] += 1
+        total[ann['category_id']] += 1
+        kept[ann['category_id']] += seen[ann['image_id']] > num_dropped
+    rec_thrs = np.linspace(0, 1, 101)
+    aps = [(rec_thrs <= kept[c] / total[c]).sum() / 101 if kept[c] else 0.
+           for c in total]
+    return 100 * float(np.mean(aps))
+
+
+def test_ap_drop_end_to_end(make_oracle, tmp_path):
     """Oracle model through Runner.test on clear and foggy val: the foggy
-    run reads the foggy images; AP/mIoU 100 on both, drop 0."""
+    run reads the foggy images; AP/mIoU 100 on clear, and on foggy the
+    drop of the instances the oracle leaves out there (the first one of
+    each image at beta 0.01, the first two at 0.02): a known AP drop,
+    larger for the denser fog."""
+    oracle = make_oracle(DROPPED)
+    ann_file = Config.fromfile(
+        oracle['cfg_file']).test_evaluator[0]['ann_file']
+    with open(ann_file) as f:
+        coco = json.load(f)
     spec = importlib.util.spec_from_file_location(
         'ap_drop_tool', osp.join(ROOT, 'tools', 'analysis_tools',
                                  'ap_drop.py'))
@@ -64,9 +101,21 @@ def test_ap_drop_end_to_end(oracle, tmp_path):
     assert [r['condition'] for r in table['rows']] == [
         'clear', 'foggy beta=0.01', 'foggy beta=0.02'
     ]
-    for row in table['rows']:
-        assert row['mask AP'] == row['box AP'] == row['mIoU'] == 100.0
-        assert row['mask AP drop'] == 0.0
+    clear, fog1, fog2 = table['rows']
+    assert clear['mask AP'] == clear['box AP'] == clear['mIoU'] == 100.0
+    assert clear['mask AP drop'] == clear['mIoU drop'] == 0.0
+    for row, beta in ((fog1, '0.01'), (fog2, '0.02')):
+        ap = expected_ap(coco, DROPPED[beta])
+        assert 0 < ap < 100
+        # MMDet's CocoMetric rounds to 3 decimals (0.1 percent)
+        for col in ('box AP', 'mask AP'):
+            assert row[col] == pytest.approx(ap, abs=0.051), (beta, col)
+            assert row[f'{col} drop'] == pytest.approx(100 - ap, abs=0.051)
+        assert row['mIoU drop'] == pytest.approx(100 - row['mIoU'])
+    # denser fog, more instances missed: larger drops (a swapped row or a
+    # sign error fails here)
+    assert 0 < fog1['mIoU drop'] < fog2['mIoU drop']
+    assert 0 < fog1['mask AP drop'] < fog2['mask AP drop']
     with open(out / 'ap_drop.json') as f:
         assert json.load(f)['rows'] == table['rows']
     assert (out / 'ap_drop.md').read_text().startswith('| condition |')

@@ -18,6 +18,8 @@ from cbnet_mmdet.datasets.cityscapes_to_coco import convert
 from tiny_configs import REPO, demo_cfg, write_cfg
 
 ANN = osp.join('annotations', 'instancesonly_filtered_gtFine_train.json')
+# tools/train.py exports LOCAL_RANK (as launchers expect): undo it
+pytestmark = pytest.mark.usefixtures('restore_environ')
 
 
 def load_train_tool():
@@ -50,9 +52,15 @@ def train(root, tmp_path, *args):
     load_train_tool().main(argv)
 
 
+#: The package's own directory; a checkout or venv named ``cbnet_mmdet``
+#: must not make every frame look like ours.
+PACKAGE_DIR = osp.dirname(osp.abspath(cbnet_mmdet.__file__)) + os.sep
+
+
 def raised_by_us(excinfo) -> bool:
-    """The error was raised in cbnet_mmdet, wrapping the library's."""
-    return 'cbnet_mmdet' in str(excinfo.traceback[-1].path)
+    """The error was raised in the package's code, wrapping the library's."""
+    return osp.abspath(str(excinfo.traceback[-1].path)).startswith(
+        PACKAGE_DIR)
 
 
 def break_missing_root(root):

@@ -2,7 +2,6 @@
 identical weights on every rank, a checkpoint that loads in one process."""
 import os
 import os.path as osp
-import socket
 import subprocess
 import sys
 
@@ -19,21 +18,15 @@ from tiny_configs import REPO, demo_cfg, subprocess_env, write_cfg
 from test_resume_exact import differences
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(('127.0.0.1', 0))
-        return sock.getsockname()[1]
-
-
 @pytest.mark.slow  # ~30 s on 2 cores (2 processes, 2 iterations each)
-def test_two_process_gloo_run(cityscapes_like_root, tmp_path):
+def test_two_process_gloo_run(cityscapes_like_root, tmp_path, free_port):
     cfg = demo_cfg(cityscapes_like_root, max_epochs=1, batch_size=1,
                    extra_imports=['helper_hooks'])
     cfg.custom_hooks.append(dict(type='CBNetTestDumpRankWeightsHook'))
     cfg_path = write_cfg(cfg, str(tmp_path / 'cfg.py'))
     work_dir = str(tmp_path / 'work')
     env = subprocess_env()
-    env.update(MASTER_PORT=str(free_port()), CUDA_VISIBLE_DEVICES='')
+    env.update(MASTER_PORT=str(free_port), CUDA_VISIBLE_DEVICES='')
     # dist_train.sh runs `python`: the interpreter running the tests
     env['PATH'] = osp.dirname(sys.executable) + os.pathsep + env['PATH']
     proc = subprocess.run(

@@ -6,6 +6,7 @@ Exact equality on CPU: same seed, ``num_workers=0`` and
 resumed run flips and samples differently and ends with other weights).
 """
 import os.path as osp
+import shutil
 import subprocess
 
 import pytest
@@ -49,16 +50,40 @@ def assert_same_training_state(ckpt_a: str, ckpt_b: str) -> dict:
     return a
 
 
-@pytest.mark.slow  # ~25 s on 2 cores (3 training processes, 9 iterations)
+def without_rng_state_hook(cfg):
+    """The config without ``CBNetRNGStateHook`` (in ``default_hooks`` from
+    the base runtime, and in the tests' ``custom_hooks``)."""
+    cfg.default_hooks.pop('rng_state', None)
+    cfg.custom_hooks = [h for h in cfg.custom_hooks
+                        if h['type'] != 'CBNetRNGStateHook']
+    return cfg
+
+
+def training_state_differences(ckpt_a: str, ckpt_b: str) -> list:
+    a, b = torch.load(ckpt_a), torch.load(ckpt_b)
+    return [d for key in ('state_dict', 'optimizer')
+            for d in differences(a[key], b[key], key)]
+
+
+@pytest.mark.slow  # 4 training processes, 11 iterations (see docstring)
 def test_sigkill_mid_epoch_then_resume_is_exact(cityscapes_like_root,
                                                 tmp_path):
+    """... and, as a negative control, the same resume without
+    ``CBNetRNGStateHook`` ends with other weights: the hook is what makes
+    the resumed run exact. (Two resumes instead of one since the control:
+    327 s measured on 2 cores shared with four other test runs, load ~5;
+    the one-resume version was ~25 s on idle cores.)"""
     cfg_path = write_cfg(
         demo_cfg(cityscapes_like_root), str(tmp_path / 'cfg.py'))
+    no_rng_path = write_cfg(
+        without_rng_state_hook(demo_cfg(cityscapes_like_root)),
+        str(tmp_path / 'no_rng_cfg.py'))
     kill_cfg = demo_cfg(cityscapes_like_root, extra_imports=['helper_hooks'])
     kill_cfg.custom_hooks.append(
         dict(type='CBNetTestSigkillHook', at_iter=KILL_AT))
     kill_path = write_cfg(kill_cfg, str(tmp_path / 'kill_cfg.py'))
     full, cut = str(tmp_path / 'full'), str(tmp_path / 'cut')
+    cut_no_rng = str(tmp_path / 'cut_no_rng')
     # the uninterrupted and the interrupted run side by side (2 cores)
     procs = [
         subprocess.Popen(
@@ -71,17 +96,28 @@ def test_sigkill_mid_epoch_then_resume_is_exact(cityscapes_like_root,
     assert procs[1].returncode == -9, logs[1][-3000:]  # SIGKILL
     assert osp.isfile(osp.join(cut, 'epoch_1.pth'))
     assert not osp.exists(osp.join(cut, 'epoch_2.pth'))
-    # `--resume` without a path: the latest checkpoint of the work dir
-    resumed = subprocess.run(
-        train_cmd(cfg_path, cut, '--resume'), env=subprocess_env(),
-        capture_output=True, text=True, timeout=240)
-    out = resumed.stdout + resumed.stderr
-    assert resumed.returncode == 0, out[-3000:]
+    shutil.copytree(cut, cut_no_rng)
+    # `--resume` without a path: the latest checkpoint of the work dir; with
+    # and (negative control) without the RNG state hook, side by side
+    procs = [
+        subprocess.Popen(
+            cmd, env=subprocess_env(), stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True)
+        for cmd in (train_cmd(cfg_path, cut, '--resume'),
+                    train_cmd(no_rng_path, cut_no_rng, '--resume'))
+    ]
+    (out, out_no_rng) = [p.communicate(timeout=240)[0] for p in procs]
+    assert procs[0].returncode == 0, out[-3000:]
+    assert procs[1].returncode == 0, out_no_rng[-3000:]
     assert 'resumed epoch: 1, iter: 2' in out
     assert 'random generators restored' in out
     ckpt = assert_same_training_state(
         osp.join(full, 'epoch_2.pth'), osp.join(cut, 'epoch_2.pth'))
     assert (ckpt['meta']['epoch'], ckpt['meta']['iter']) == (2, 4)
+    assert 'resumed epoch: 1, iter: 2' in out_no_rng
+    assert 'random generators restored' not in out_no_rng
+    assert training_state_differences(
+        osp.join(full, 'epoch_2.pth'), osp.join(cut_no_rng, 'epoch_2.pth'))
 
 
 def _runner(root, work_dir, name, crash=False, resume=False) -> Runner:

@@ -1,23 +1,21 @@
 """The train/test entry points parse what launchers and mim pass."""
-import importlib.util
 import os
 import os.path as osp
 
 import pytest
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+from tool_helpers import load_tool
 
 
 def _load(name):
-    spec = importlib.util.spec_from_file_location(
-        f'cbnet_tools_{name}', osp.join(ROOT, 'tools', f'{name}.py'))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool(f'{name}.py')
 
 
 @pytest.fixture
-def clean_local_rank(monkeypatch):
+def clean_local_rank(monkeypatch, restore_environ):
+    """No LOCAL_RANK during the test; whatever ``parse_args`` exports is
+    undone afterwards (``monkeypatch.delenv`` of an unset variable records
+    nothing to undo)."""
     monkeypatch.delenv('LOCAL_RANK', raising=False)
 
 
@@ -31,7 +29,7 @@ def test_local_rank_both_spellings(tool, flag, clean_local_rank):
     assert os.environ['LOCAL_RANK'] == '3'
 
 
-def test_torchrun_local_rank_env_wins(monkeypatch):
+def test_torchrun_local_rank_env_wins(monkeypatch, restore_environ):
     monkeypatch.setenv('LOCAL_RANK', '1')
     args = _load('train').parse_args(['cfg.py', '--local-rank', '0'])
     assert args.local_rank == 0

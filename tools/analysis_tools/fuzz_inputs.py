@@ -13,9 +13,12 @@ weights). Outcomes:
 
 * ``ok``: trained, all losses and gradients finite;
 * ``clear error``: ``FileNotFoundError`` / ``ValueError`` / ``KeyError`` /
-  ``TypeError`` raised in ``cbnet_mmdet`` code, or naming the mutated file;
-* ``crash``: anything else (other exceptions, errors that name no file,
-  non-finite losses or gradients) - listed with the mutation to reproduce.
+  ``TypeError`` raised by the package's own code (a check of
+  ``cbnet_mmdet``, not a library error that happens to print a path) AND
+  naming the mutated file (the image, or the annotation file);
+* ``crash``: anything else (other exceptions, library errors, errors that
+  name no file, non-finite losses or gradients) - listed with the mutation
+  to reproduce.
 
 Usage::
 
@@ -49,6 +52,7 @@ from mmengine.registry import init_default_scope
 import cbnet_mmdet  # noqa: F401  (registers the components)
 
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+PACKAGE_DIR = osp.dirname(osp.abspath(cbnet_mmdet.__file__)) + os.sep
 DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 ANN = osp.join('annotations', 'instancesonly_filtered_gtFine_train.json')
@@ -274,15 +278,22 @@ def run_variant(model, dataset_cfg: dict, ann_file: str) -> str:
     return 'ok'
 
 
+def raised_in_package(err: BaseException) -> bool:
+    """Whether ``err`` was raised by the package's own code (its last frame
+    lies in the ``cbnet_mmdet`` package directory; a checkout or virtual
+    environment that merely has ``cbnet_mmdet`` in its path does not
+    count)."""
+    frames = traceback.extract_tb(err.__traceback__)
+    return bool(frames) and osp.abspath(frames[-1].filename).startswith(
+        PACKAGE_DIR)
+
+
 def classify(err: BaseException, mutated: str, ann_file: str) -> str:
     """``'clear error'`` or ``'crash'`` (see the module docstring)."""
-    if not isinstance(err, CLEAR_TYPES):
-        return 'crash'
-    frames = traceback.extract_tb(err.__traceback__)
-    ours = bool(frames) and 'cbnet_mmdet' in frames[-1].filename
     text = str(err)
     names = mutated in text or ann_file in text
-    return 'clear error' if ours or names else 'crash'
+    clear = isinstance(err, CLEAR_TYPES) and raised_in_package(err) and names
+    return 'clear error' if clear else 'crash'
 
 
 def sweep(data_root: str, variants: int, seed: int, num_images: int,

@@ -19,6 +19,10 @@ class CBNetLoadPairedImageFromFile(LoadImageFromFile):
     Photometric transforms must not follow (they would mix or reject the 6
     channels); ``CBNetPairedFoggyDataset`` refuses them.
 
+    An image whose size differs from the ``height``/``width`` its
+    annotations give (the dataset's data info), or a foggy image of another
+    size than its clear twin, raises ``ValueError`` naming the files.
+
     Required keys: ``img_path`` (clear), ``foggy_img_path``.
     Added keys: ``img``, ``img_shape``, ``ori_shape``.
 
@@ -60,6 +64,14 @@ class CBNetLoadPairedImageFromFile(LoadImageFromFile):
                 f"{results['foggy_img_path']} {foggy['img'].shape} and "
                 f"clear image {results['img_path']} {clear['img'].shape} "
                 'differ in size')
+        if 'height' in results and 'width' in results:
+            expected = (results['height'], results['width'])
+            if tuple(clear['img'].shape[:2]) != expected:
+                raise ValueError(
+                    f"CBNetLoadPairedImageFromFile: image "
+                    f"{results['img_path']} is {clear['img'].shape[0]}x"
+                    f"{clear['img'].shape[1]} (HxW) but its annotations say "
+                    f'{expected[0]}x{expected[1]}')
         img = np.concatenate([foggy['img'], clear['img']], axis=2)
         results['img'] = img
         results['img_shape'] = img.shape[:2]

@@ -50,7 +50,9 @@ class ToyDataset(torch.utils.data.Dataset):
 
 
 def build_hook(**kwargs):
-    return HOOKS.build(dict(type='CBNetTeacherEMAHook', **kwargs))
+    # scoped name: found whatever default scope an earlier test's Runner
+    # left current (e.g. 'mmengine', whose hook registry lacks ours)
+    return HOOKS.build(dict(type='mmdet.CBNetTeacherEMAHook', **kwargs))
 
 
 def mock_runner(model, iteration=0):

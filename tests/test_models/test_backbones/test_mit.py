@@ -4,6 +4,12 @@ import torch
 import torch.nn as nn
 from mmdet.registry import MODELS
 
+# the reference of the equality test: mmsegmentation is a pinned test
+# requirement (requirements/tests.txt), so a missing reference fails (an
+# import error), never skips; imported at collection, as its import
+# exports TOKENIZERS_PARALLELISM
+from mmseg.models.backbones import mit as mmseg_mit
+
 import cbnet_mmdet  # noqa: F401  (registers CBNetMiT)
 from cbnet_mmdet.models.backbones import CBNetMiT
 
@@ -196,10 +202,9 @@ def test_equals_mmseg_mix_vision_transformer(arch, size, tmp_path):
     The reference is initialised randomly, saved in its own layout and
     loaded through ``init_cfg=Pretrained``.
     """
-    mit = pytest.importorskip('mmseg.models.backbones.mit')
     settings = CBNetMiT._parse_arch(arch)
     torch.manual_seed(3)
-    ref = mit.MixVisionTransformer(
+    ref = mmseg_mit.MixVisionTransformer(
         embed_dims=settings['embed_dims'][0],
         num_layers=settings['depths'],
         num_heads=settings['num_heads'],

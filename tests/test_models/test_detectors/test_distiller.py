@@ -1,12 +1,15 @@
 import copy
+from unittest import mock
 
 import pytest
 import torch
 from mmdet.registry import MODELS
+from mmdet.structures.bbox import bbox2roi
 from mmdet.testing import demo_mm_inputs
 from mmengine.optim import build_optim_wrapper
 
 import cbnet_mmdet  # noqa: F401
+from cbnet_mmdet.models.losses import CBNetDistillLoss
 
 
 def paired_batch(same=False, seed=0):
@@ -40,12 +43,7 @@ CASCADE = 'cascade-mask-rcnn_r50_fpn.py'
 @pytest.mark.parametrize('base,roi_head', [
     ('mask-rcnn_r50_fpn.py', None),
     (CASCADE, None),
-    pytest.param(
-        CASCADE,
-        'CBNetCascadeRoIHead',
-        marks=pytest.mark.skipif(
-            MODELS.get('CBNetCascadeRoIHead') is None,
-            reason='CBNetCascadeRoIHead is not in this checkout')),
+    (CASCADE, 'CBNetCascadeRoIHead'),
 ])
 def test_distill_loss_zero_for_same_model_and_input(make_distiller_cfg, base,
                                                     roi_head):
@@ -152,12 +150,12 @@ def test_bad_config_and_input(make_distiller_cfg):
         model.loss(data['inputs'], data['data_samples'])
 
 
-def test_ddp_one_process(make_distiller_cfg, monkeypatch):
+def test_ddp_one_process(make_distiller_cfg, monkeypatch, free_port):
     """DDP (gloo, 1 process): teacher excluded from gradient sync."""
     import torch.distributed as dist
     from mmengine.model import MMDistributedDataParallel
     monkeypatch.setenv('MASTER_ADDR', '127.0.0.1')
-    monkeypatch.setenv('MASTER_PORT', '29571')
+    monkeypatch.setenv('MASTER_PORT', str(free_port))
     dist.init_process_group('gloo', rank=0, world_size=1)
     try:
         model = build(make_distiller_cfg())
@@ -194,3 +192,58 @@ def test_images_without_objects(make_distiller_cfg):
     losses = loss_of(model, data)
     assert losses['loss_distill'].item() == 0
     losses['loss_distill'].backward()
+
+
+def teacher_mask_logits(teacher, clear, rois):
+    """The teacher's last mask head on ``rois``, computed here from its
+    parts (RoI extractor + mask head), not through the distiller."""
+    roi_head = teacher.roi_head
+    extractor, head = roi_head.mask_roi_extractor, roi_head.mask_head
+    if isinstance(head, torch.nn.ModuleList):  # MMDet's cascade: per stage
+        extractor, head = extractor[-1], head[-1]
+    feats = teacher.extract_feat(clear)
+    return head(extractor(feats[:extractor.num_inputs], rois))
+
+
+@pytest.mark.parametrize('base,roi_head', [
+    ('mask-rcnn_r50_fpn.py', None),
+    (CASCADE, None),
+    (CASCADE, 'CBNetCascadeRoIHead'),
+])
+def test_loss_distill_is_distill_loss_on_recorded_rois(
+        make_distiller_cfg, base, roi_head):
+    """Record what the student's mask head saw (its positive RoIs of the
+    last stage and its logits), run the teacher's mask head on the same RoIs
+    of the clear image, and recompute ``loss_distill`` with
+    ``CBNetDistillLoss`` on the ground-truth class channel."""
+    model = build(make_distiller_cfg(base, roi_head))
+    model.train()
+    with torch.no_grad():  # a teacher that differs from the student
+        for p in model.teacher.roi_head.mask_head.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    head = model.student.roi_head.mask_head
+    if isinstance(head, torch.nn.ModuleList):
+        head = head[-1]
+    calls = []
+    original = head.loss_and_target
+
+    def spy(mask_preds, sampling_results, *args, **kwargs):
+        calls.append((mask_preds.detach().clone(), sampling_results))
+        return original(mask_preds, sampling_results, *args, **kwargs)
+
+    data = model.data_preprocessor(paired_batch(), True)
+    with mock.patch.object(head, 'loss_and_target', side_effect=spy):
+        losses = model.loss(data['inputs'], data['data_samples'])
+    assert len(calls) == 1  # the last stage's head only
+    student_logits, sampling = calls[0]
+    rois = bbox2roi([res.pos_priors for res in sampling])
+    labels = torch.cat([res.pos_gt_labels for res in sampling])
+    assert len(rois) > 0
+    with torch.no_grad():
+        teacher_logits = teacher_mask_logits(
+            model.teacher, data['inputs'][:, 3:], rois)
+    index = torch.arange(len(labels))
+    expected = CBNetDistillLoss()(student_logits[index, labels],
+                                  teacher_logits[index, labels])
+    assert expected.item() > 1e-4
+    torch.testing.assert_close(losses['loss_distill'].detach(), expected)

@@ -9,6 +9,7 @@ from mmengine.config import ConfigDict
 from mmengine.structures import InstanceData
 from mmdet.registry import MODELS
 from mmdet.structures import DetDataSample
+from mmdet.structures.bbox import bbox2roi
 from mmdet.structures.mask import BitmapMasks
 from mmdet.testing import demo_mm_inputs, demo_mm_proposals
 from mmdet.utils import register_all_modules
@@ -399,3 +400,91 @@ def test_tiny_detector_trains_and_predicts():
     with torch.no_grad():
         preds = model(**data, mode='predict')
     assert preds[0].pred_instances.masks.shape[1:] == (96, 96)
+
+
+# --------------------------------------------------------------------------
+# Reference: MMDetection's own CascadeRoIHead and FCNMaskHead
+# --------------------------------------------------------------------------
+#: RoIs sampled per image and stage in the comparisons: fewer than the
+#: proposals, so that the sampler's random draws matter.
+NUM_SAMPLE = 16
+
+
+def reference_heads(ours):
+    """MMDet's ``CascadeRoIHead`` without masks and an ``FCNMaskHead``,
+    holding the weights of ``ours`` (box stages / mask head)."""
+    cfg = roi_head_cfg(num_sample=NUM_SAMPLE)
+    mask_cfg = cfg.pop('mask_head')
+    ref_extractor = MODELS.build(cfg.pop('mask_roi_extractor'))
+    cfg['type'] = 'CascadeRoIHead'
+    ref = MODELS.build(cfg)
+    ref.bbox_head.load_state_dict(ours.bbox_head.state_dict())
+    ref_mask = MODELS.build(
+        dict(type='FCNMaskHead', **{k: v for k, v in mask_cfg.items()
+                                    if k in ('num_convs', 'in_channels',
+                                             'conv_out_channels',
+                                             'num_classes')}))
+    state = {k: v for k, v in ours.mask_head.state_dict().items()
+             if not k.startswith('conv_edge.')}
+    ref_mask.load_state_dict(state)  # strict: every FCNMaskHead key
+    return ref.eval(), ref_mask.eval(), ref_extractor
+
+
+def randomised_head():
+    torch.manual_seed(0)
+    head = MODELS.build(roi_head_cfg(num_sample=NUM_SAMPLE))
+    head.init_weights()
+    with torch.no_grad():  # away from zero biases, more boxes survive
+        for p in head.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    return head
+
+
+def test_box_stages_equal_mmdet_cascade_roi_head():
+    """Same weights, proposals and seed: the three box stages' losses equal
+    MMDet's ``CascadeRoIHead`` (whose mask branch is left out: ours runs a
+    mask head on the last stage only)."""
+    head = randomised_head()
+    ref, _, _ = reference_heads(head)
+    feats, proposals, samples = unit_inputs()
+    torch.manual_seed(1)
+    ours = head.loss(feats, copy.deepcopy(proposals), samples)
+    torch.manual_seed(1)
+    expected = ref.loss(feats, copy.deepcopy(proposals), samples)
+    assert set(expected) == {k for k in ours if 'mask' not in k and
+                             'edge' not in k}
+    for key, value in expected.items():
+        torch.testing.assert_close(ours[key], value, msg=key)
+    assert all(expected[f's{i}.loss_bbox'] > 0 for i in range(3))
+
+
+def test_prediction_equals_mmdet_boxes_and_fcn_mask_head():
+    """Final boxes / scores / labels equal MMDet's cascade; the masks equal
+    MMDet's ``FCNMaskHead.predict_by_feat`` on those final boxes."""
+    head = randomised_head().eval()
+    ref, ref_mask, extractor = reference_heads(head)
+    feats, proposals, samples = unit_inputs()
+    for sample in samples:  # rescaling must reach boxes and masks
+        sample.set_metainfo(dict(scale_factor=(0.5, 0.5),
+                                 ori_shape=(128, 128)))
+    metas = [s.metainfo for s in samples]
+    with torch.no_grad():
+        ours = head.predict(feats, copy.deepcopy(proposals), samples,
+                            rescale=True)
+        boxes = ref.predict_bbox(feats, metas, copy.deepcopy(proposals),
+                                 ref.test_cfg, rescale=False)
+        rois = bbox2roi([res.bboxes for res in boxes])
+        logits = ref_mask(extractor(feats[:extractor.num_inputs], rois))
+        expected = ref_mask.predict_by_feat(
+            logits.split([len(res) for res in boxes]), boxes, metas,
+            ref.test_cfg, rescale=True)
+    assert sum(len(res) for res in expected) > 5
+    for got, exp in zip(ours, expected):
+        torch.testing.assert_close(got.bboxes, exp.bboxes)
+        torch.testing.assert_close(got.scores, exp.scores)
+        assert torch.equal(got.labels, exp.labels)
+        assert got.masks.shape == exp.masks.shape == (len(exp), 128, 128)
+        # channels_last may move a logit by ~1e-7: allow a flipped pixel
+        # at the 0.5 threshold, no more
+        assert (got.masks != exp.masks).sum() <= 2
+        assert exp.masks.any()

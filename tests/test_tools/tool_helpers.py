@@ -1,0 +1,38 @@
+"""Helpers of the tool smoke tests: load a script of ``tools/`` as a module
+(the tools are not a package); a checkpoint of the demo model."""
+import importlib.util
+import os.path as osp
+
+REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+DEMO = osp.join(REPO, 'configs', 'demo',
+                'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+
+
+def load_tool(relpath: str):
+    """Import ``tools/{relpath}`` under a private module name.
+
+    Args:
+        relpath (str): Path under ``tools/``, e.g.
+            ``'analysis_tools/benchmark_rpn.py'``.
+    """
+    name = 'cbnet_tools_' + relpath.replace('/', '_')[:-3]
+    spec = importlib.util.spec_from_file_location(
+        name, osp.join(REPO, 'tools', relpath))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def demo_checkpoint(path: str) -> str:
+    """Save the demo model, seeded and initialised (random weights), as a
+    checkpoint at ``path``; returns ``path``."""
+    import torch
+    from mmdet.registry import MODELS
+    from mmengine.config import Config
+    from mmengine.registry import init_default_scope
+    init_default_scope('mmdet')
+    torch.manual_seed(0)
+    model = MODELS.build(Config.fromfile(DEMO).model)
+    model.init_weights()
+    torch.save(dict(state_dict=model.state_dict(), meta=dict()), path)
+    return path
