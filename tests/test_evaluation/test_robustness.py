@@ -168,6 +168,7 @@ def test_tool_end_to_end(oracle, tmp_path, capsys):
     assert all(p.endswith('_foggy_beta_0.01.png') for p in paths[9:])
     clean, fog1, fog5 = (torch.stack([i for _, i in SEEN[k:k + 3]]).float()
                          for k in (0, 3, 6))
+
     # imagecorruptions' fog keeps m / (m + c) of the image (c = 1.5 at
     # severity 1, 3 at 5) under a plasma haze: the stronger the fog, the
     # further from and the less correlated with the clean image

@@ -29,11 +29,14 @@ def _copy_sources(dst):
                                  n.endswith('.egg-info')])
 
 
-@pytest.fixture(scope='module')
-def wheel(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp('wheel')
+def _build_wheel(tmp, version=None):
+    """Wheel of a copy of the sources (``version`` replaces the
+    package's)."""
     src = tmp / 'src'
     _copy_sources(src)
+    if version is not None:
+        (src / 'cbnet_mmdet' / 'version.py').write_text(
+            f"__version__ = '{version}'\n")
     subprocess.run([
         sys.executable, '-m', 'pip', 'wheel', '--no-deps',
         '--no-build-isolation', '-q', '-w',
@@ -42,6 +45,11 @@ def wheel(tmp_path_factory):
     ], check=True)
     (whl, ) = (tmp / 'dist').glob('cbnet_mmdet-*.whl')
     return whl
+
+
+@pytest.fixture(scope='module')
+def wheel(tmp_path_factory):
+    return _build_wheel(tmp_path_factory.mktemp('wheel'))
 
 
 def _install(wheel, site):
@@ -147,17 +155,7 @@ def test_wheel_installs_into_an_existing_mmdet_environment(tmp_path):
     would be installed (torch, mmcv, mmdet untouched). The wheel gets a
     local version so that pip does not take the project's own installed
     copy as already satisfying it."""
-    src = tmp_path / 'src'
-    _copy_sources(src)
-    (src / 'cbnet_mmdet' / 'version.py').write_text(
-        "__version__ = '0.1.0+existingenv'\n")
-    subprocess.run([
-        sys.executable, '-m', 'pip', 'wheel', '--no-deps',
-        '--no-build-isolation', '-q', '-w',
-        str(tmp_path / 'dist'),
-        str(src)
-    ], check=True)
-    (whl, ) = (tmp_path / 'dist').glob('cbnet_mmdet-*.whl')
+    whl = _build_wheel(tmp_path, version='0.1.0+existingenv')
     report = subprocess.run([
         sys.executable, '-m', 'pip', 'install', '--dry-run', '--no-index',
         '--report', '-', '-q',
