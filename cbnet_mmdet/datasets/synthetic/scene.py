@@ -270,8 +270,8 @@ def _stuff(cam: SceneCamera, st: Street, rng: np.random.Generator
         'ground'))
     # the road: a band of the ground plane from 0.3 m to the street's end
     (xl, xr), near = st.road, 0.3
-    col, row = cam.project([xl, xr, xr, xl], 0.0, [st.end, st.end, near,
-                                                    near])
+    col, row = cam.project([xl, xr, xr, xl], 0.0,
+                           [st.end, st.end, near, near])
     out.append(ScenePolygon('road', _polygon([np.stack([col, row], 1)], cam),
                             float('nan'), 'ground',
                             marks=((xl + xr) / 2, xl + 0.3, xr - 0.3)))
@@ -315,8 +315,8 @@ def _props(cam: SceneCamera, st: Street, rng: np.random.Generator
             z = rng.uniform(4, 15)
             walk = abs(st.facade[side] - st.road[side])
             while z < min(st.end, 150):
-                x = st.road[side] + sign * rng.uniform(0.8, max(walk - 1,
-                                                                 0.9))
+                x = st.road[side] + sign * rng.uniform(
+                    0.8, max(walk - 1, 0.9))
                 r = rng.uniform(1.5, 3.0)
                 cy = rng.uniform(3.5, 6.0)
                 ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
