@@ -13,7 +13,7 @@ def test_generate_cli(tmp_path, capsys):
     root = tmp_path / 'cs'
     tool.main([str(root), '--num-train', '2', '--num-val', '1', '--size',
                '96', '192', '--seed', '1', '--betas', '0.01', '--convert',
-               '--density', '0.5'])
+               '--density', '0.5', '--min-height-px', '6'])
     out = capsys.readouterr().out
     assert 'train: 2 images' in out and 'val: 1 images' in out
     assert (root / 'leftImg8bit' / 'val' / 'frankfurt' /
@@ -29,4 +29,5 @@ def test_generate_cli(tmp_path, capsys):
     assert min(a['id'] for a in coco['annotations']) == 1
     assert min(img['id'] for img in coco['images']) == 1
     with open(root / 'generator_record.json') as f:
-        assert json.load(f)['density'] == 0.5
+        record = json.load(f)
+    assert record['density'] == 0.5 and record['min_height_px'] == 6
