@@ -71,8 +71,7 @@ def _fractions(values: np.ndarray, edges: Sequence[float],
     out = {}
     n = max(len(values), 1)
     for lo, hi in zip(edges[:-1], edges[1:]):
-        key = fmt.format(f'{lo:g}', 'inf' if hi == float('inf') else
-                         f'{hi:g}')
+        key = fmt.format(f'{lo:g}', f'{hi:g}').replace('inf^2', 'inf')
         out[key] = float(((values >= lo) & (values < hi)).sum() / n)
     return out
 

@@ -152,7 +152,7 @@ def _single_image_tree(root, dst, index):
 
 
 def test_ground_truth_as_prediction_scores_100(cityscapes_like_root,
-                                                tmp_path):
+                                               tmp_path):
     """Each annotation given back as a detection is a true positive: 100 AP
     through MMDet's CocoMetric and through pycocotools itself. A split
     numbered from 0 loses its first annotation (COCOeval reads a match to

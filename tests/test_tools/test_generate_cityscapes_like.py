@@ -12,7 +12,8 @@ def test_generate_cli(tmp_path, capsys):
     spec.loader.exec_module(tool)
     root = tmp_path / 'cs'
     tool.main([str(root), '--num-train', '2', '--num-val', '1', '--size',
-               '96', '192', '--seed', '1', '--betas', '0.01', '--convert'])
+               '96', '192', '--seed', '1', '--betas', '0.01', '--convert',
+               '--density', '0.5', '--min-height-px', '6'])
     out = capsys.readouterr().out
     assert 'train: 2 images' in out and 'val: 1 images' in out
     assert (root / 'leftImg8bit' / 'val' / 'frankfurt' /
@@ -24,3 +25,9 @@ def test_generate_cli(tmp_path, capsys):
               'instancesonly_filtered_gtFine_train.json') as f:
         coco = json.load(f)
     assert len(coco['images']) == 2 and len(coco['annotations']) >= 16
+    # COCO ids from 1 (pycocotools reads annotation id 0 as no match)
+    assert min(a['id'] for a in coco['annotations']) == 1
+    assert min(img['id'] for img in coco['images']) == 1
+    with open(root / 'generator_record.json') as f:
+        record = json.load(f)
+    assert record['density'] == 0.5 and record['min_height_px'] == 6

@@ -4,7 +4,7 @@ Usage::
 
     python tools/misc/generate_cityscapes_like.py data/cityscapes_like \
         [--num-train 40 --num-val 10 --size 256 512 --seed 0] [--convert] \
-        [--density 1.0]
+        [--density 1.0] [--min-height-px 8]
 
 The layout is Cityscapes' (``leftImg8bit``, ``gtFine``,
 ``leftImg8bit_foggy``, plus ``depth`` in centimetres); ``--convert`` also
@@ -36,6 +36,9 @@ def parse_args(argv=None):
         help='scale of the mean object counts per image (1: about 20 '
         'instances, as Cityscapes)')
     parser.add_argument(
+        '--min-height-px', type=float, default=8.0,
+        help='objects shorter than this (pixels) are not drawn')
+    parser.add_argument(
         '--convert', action='store_true',
         help='also write annotations/instancesonly_filtered_gtFine_*.json')
     return parser.parse_args(argv)
@@ -46,7 +49,8 @@ def main(argv=None):
     records = generate_cityscapes_like(
         args.out_root, num_train=args.num_train, num_val=args.num_val,
         img_size=tuple(args.size), seed=args.seed, betas=args.betas,
-        nproc=args.nproc, density=args.density)
+        nproc=args.nproc, density=args.density,
+        min_height_px=args.min_height_px)
     for split, recs in records.items():
         n_inst = sum(len(r['instances']) for r in recs)
         print(f'{split}: {len(recs)} images, {n_inst} instances')

@@ -46,10 +46,13 @@ SKY_DEPTH = 600.0
 #: Depth range of objects, metres. The near end keeps a standing object's
 #: foot inside the image (row <= height needs Z >= f h / (H - horizon),
 #: 5.2 m); at the far end a person is 28 px tall at 1024x2048, 3.5 px at
-#: 128x256 (dropped there, see MIN_HEIGHT_PX).
+#: 128x256 (not drawn there, see MIN_HEIGHT_PX).
 MIN_DEPTH, MAX_DEPTH = 5.5, 140.0
-#: Smallest object height drawn, pixels (smaller ones vanish in rasterising).
-MIN_HEIGHT_PX = 4.0
+#: Default smallest object height drawn, pixels. At 128x256 it keeps cars
+#: nearer than 53 m and persons nearer than 62 m (objects a few pixels tall
+#: are noise to a detector trained for minutes at that size); at 1024x2048
+#: it drops nothing nearer than MAX_DEPTH.
+MIN_HEIGHT_PX = 8.0
 #: Classes that appear as crowd ("group") regions, as in Cityscapes.
 GROUP_CLASSES = ('person', 'car', 'bicycle')
 #: Mean number of objects of each kind per image at ``density=1``, chosen
@@ -270,8 +273,8 @@ def _stuff(cam: SceneCamera, st: Street, rng: np.random.Generator
         'ground'))
     # the road: a band of the ground plane from 0.3 m to the street's end
     (xl, xr), near = st.road, 0.3
-    col, row = cam.project([xl, xr, xr, xl], 0.0, [st.end, st.end, near,
-                                                    near])
+    col, row = cam.project([xl, xr, xr, xl], 0.0,
+                           [st.end, st.end, near, near])
     out.append(ScenePolygon('road', _polygon([np.stack([col, row], 1)], cam),
                             float('nan'), 'ground',
                             marks=((xl + xr) / 2, xl + 0.3, xr - 0.3)))
@@ -315,8 +318,8 @@ def _props(cam: SceneCamera, st: Street, rng: np.random.Generator
             z = rng.uniform(4, 15)
             walk = abs(st.facade[side] - st.road[side])
             while z < min(st.end, 150):
-                x = st.road[side] + sign * rng.uniform(0.8, max(walk - 1,
-                                                                 0.9))
+                x = st.road[side] + sign * rng.uniform(
+                    0.8, max(walk - 1, 0.9))
                 r = rng.uniform(1.5, 3.0)
                 cy = rng.uniform(3.5, 6.0)
                 ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
@@ -415,8 +418,10 @@ def _colours(cls: str, rng: np.random.Generator) -> tuple:
 class _Objects:
     """Collects the objects of a scene (depth-sorted later)."""
 
-    def __init__(self, cam: SceneCamera, rng: np.random.Generator):
+    def __init__(self, cam: SceneCamera, rng: np.random.Generator,
+                 min_height_px: float = MIN_HEIGHT_PX):
         self.cam, self.rng, self.polys = cam, rng, []
+        self.min_height_px = min_height_px
 
     def add(self, cls: str, x: float, z: float, along: bool,
             rider: bool = False) -> bool:
@@ -424,7 +429,8 @@ class _Objects:
         two-wheeler when ``rider``); False when it is too small, behind the
         camera's near limit or outside the image."""
         cam, rng = self.cam, self.rng
-        if z < MIN_DEPTH or cam.focal * _height(cls) / z < MIN_HEIGHT_PX:
+        if z < MIN_DEPTH or \
+                cam.focal * _height(cls) / z < self.min_height_px:
             return False
         view, origin, scale = _place(cam, cls, x, z, along, rng)
         poly = _object(cam, cls, SILHOUETTES[(cls, view)], z, view, origin,
@@ -540,7 +546,8 @@ def sample_street(cam: SceneCamera, rng: np.random.Generator) -> Street:
 
 def sample_scene(cam: SceneCamera, rng: np.random.Generator,
                  empty: bool = False, crowd: bool = False,
-                 density: float = 1.0) -> List[ScenePolygon]:
+                 density: float = 1.0,
+                 min_height_px: float = MIN_HEIGHT_PX) -> List[ScenePolygon]:
     """Sample one scene, polygons ordered back to front.
 
     Every non-empty scene holds each of the 8 classes at least once (so a
@@ -555,6 +562,8 @@ def sample_scene(cam: SceneCamera, rng: np.random.Generator,
             or ``bicyclegroup``).
         density (float): Scale of the mean object counts
             (:data:`MEAN_COUNTS`, parked rows).
+        min_height_px (float): Objects shorter than this (pixels, standing
+            height before occlusion) are not drawn.
 
     Returns:
         list[ScenePolygon]: Stuff first, then poles, trees and objects far
@@ -564,7 +573,7 @@ def sample_scene(cam: SceneCamera, rng: np.random.Generator,
     polys = [p for p in _stuff(cam, st, rng) if p.polygon is not None]
     front = _props(cam, st, rng)
     if not empty:
-        objs = _Objects(cam, rng)
+        objs = _Objects(cam, rng, min_height_px)
         _fill(objs, st, density)
         _guarantee(objs, st)
         if crowd:

@@ -170,7 +170,7 @@ def _leaves(along, up, foot, seed) -> np.ndarray:
     return _mix(rgb, (25, 38, 18), np.clip(-n * 2.5 - 0.6, 0, 0.9))
 
 
-def _stuff(px: _Pixels, scene, cam, seed) -> np.ndarray:
+def _stuff(px: _Pixels, scene, seed) -> np.ndarray:
     """Buildings, vegetation, poles and signs (facade or flat)."""
     facade = np.array([p.surface == 'facade' for p in scene])[px.idx]
     plane = np.array([p.plane_x for p in scene])[px.idx]
@@ -260,8 +260,8 @@ def _object_rgb(px: _Pixels, cls: str, side: np.ndarray, seed: int
         if cls == 'truck':  # ribbed box, glass in the cab
             win = side & (lx > 6.7) & (ly > 1.9) & (ly < 2.8)
             rib = (side & (lx < 5.5)) | (~side & (ly > 0.6))
-            rgb[rib] *= (1 + 0.06 * np.sign(np.sin(2 * np.pi * lx[rib] /
-                                                    0.5)))[:, None]
+            ribs = np.sign(np.sin(2 * np.pi * lx[rib] / 0.5))  # 0.5 m
+            rgb[rib] *= (1 + 0.06 * ribs)[:, None]
             lo, hi = 1.9, 2.8
         elif cls == 'bus':  # a band of windows between pillars
             win = (ly > 1.5) & (ly < 2.7) & np.where(
@@ -359,7 +359,7 @@ def render_rgb(order: np.ndarray, scene: Sequence[ScenePolygon],
         elif name == 'sidewalk':
             out = _sidewalk(px, seed + 2)
         elif name == 'stuff':
-            out = _stuff(px, scene, cam, seed + 3)
+            out = _stuff(px, scene, seed + 3)
         else:
             side = np.array([p.view == 'side' for p in scene])[px.idx]
             out = _object_rgb(px, name, side, seed + 4)

@@ -129,6 +129,18 @@ def test_sample_scene(seed):
     assert not any(p.surface == 'object' for p in empty)
 
 
+def test_min_height_px():
+    """No object (before clipping at the border) is shorter than asked."""
+    cam = SceneCamera(128, 256)
+    for seed in range(3):
+        scene = sample_scene(cam, np.random.default_rng(seed),
+                             min_height_px=30)
+        heights = [np.ptp(p.polygon[:, 1]) for p in scene
+                   if p.surface == 'object' and p.polygon[:, 1].min() > 0
+                   and p.polygon[:, 1].max() < 127]
+        assert heights and min(heights) >= 28, heights
+
+
 def test_value_noise():
     x, y = np.meshgrid(np.linspace(0, 20, 400), np.linspace(0, 10, 200))
     n = value_noise(x, y, 3)
