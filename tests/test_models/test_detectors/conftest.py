@@ -158,3 +158,9 @@ def make_distiller_cfg():
 @pytest.fixture
 def make_preprocessor_cfg():
     return paired_preprocessor_cfg
+
+
+@pytest.fixture
+def make_tiny_detector_cfg():
+    """``make_tiny_detector_cfg(base='mask-rcnn_r50_fpn.py')``."""
+    return tiny_detector_cfg
