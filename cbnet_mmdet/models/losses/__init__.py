@@ -1,4 +1,9 @@
 from .boundary_aware_loss import CBNetBoundaryAwareLoss
 from .distill_loss import CBNetDistillLoss
+from .patch_nce_loss import CBNetPatchNCELoss
+from .ssim_loss import CBNetSSIMLoss
 
-__all__ = ['CBNetDistillLoss', 'CBNetBoundaryAwareLoss']
+__all__ = [
+    'CBNetDistillLoss', 'CBNetBoundaryAwareLoss', 'CBNetPatchNCELoss',
+    'CBNetSSIMLoss'
+]
