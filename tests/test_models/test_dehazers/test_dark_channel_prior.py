@@ -66,6 +66,23 @@ def test_recovers_clear_image_from_scattering_model():
     assert (t - trans)[ground].abs().mean() < 0.05
 
 
+def test_atmospheric_light_is_brightest_of_haziest_pixels():
+    """He et al.: among the top dark-channel pixels, the brightest input
+    pixel (not the one with the highest dark channel)."""
+    img = torch.zeros(2, 3, 10, 10)
+    img[:, :, 2, 3] = torch.tensor([0.9, 0.9, 0.9])  # dark 0.9, sum 2.7
+    img[:, :, 7, 1] = torch.tensor([0.85, 0.99, 0.99])  # dark .85, sum 2.83
+    img[1, :, 5, 5] = torch.tensor([0.88, 1.0, 1.0])  # image 1 only
+    dcp = MODELS.build(dict(type='CBNetDarkChannelPrior', patch_size=1,
+                            top_fraction=0.02))  # the top 2 of 100
+    light = dcp.atmospheric_light(img, dcp.dark_channel(img))
+    assert light.shape == (2, 3, 1, 1)
+    torch.testing.assert_close(light[0].flatten(),
+                               torch.tensor([0.85, 0.99, 0.99]))
+    torch.testing.assert_close(light[1].flatten(),
+                               torch.tensor([0.88, 1.0, 1.0]))
+
+
 def numpy_box_mean(x, r):
     h, w = x.shape
     out = np.zeros_like(x)
