@@ -8,8 +8,8 @@ Usage::
 
 Times the learned ``CBNetAttentionDehazer`` (its small default) and
 ``CBNetDarkChannelPrior`` on random [0, 1] images of each H x W (batch 1,
-inference, no gradients): median of ``--repeats`` calls after one
-warm-up, then the peak memory of one more call (``PeakMemory``). This is
+inference, no gradients): median of ``--repeats`` calls after ``--warmup``
+untimed ones, then the peak memory of one more call (``PeakMemory``). This is
 the overhead a dehazer adds in front of a detector.
 """
 import argparse
@@ -36,6 +36,8 @@ def parse_args(argv=None):
     parser.add_argument('--dehazers', nargs='+', default=list(DEHAZERS),
                         choices=list(DEHAZERS))
     parser.add_argument('--repeats', type=int, default=3)
+    parser.add_argument('--warmup', type=int, default=1,
+                        help='untimed calls first')
     parser.add_argument('--threads', type=int, default=1)
     parser.add_argument('--device', default='cpu')
     parser.add_argument('--out', help='JSON file for the results')
@@ -56,7 +58,7 @@ def main(argv=None) -> dict:
             img = torch.rand(1, 3, h, w, device=args.device)
             with torch.no_grad():
                 times = time_calls(lambda: model(img), args.repeats,
-                                   warmup=1, device=args.device)
+                                   warmup=args.warmup, device=args.device)
                 with PeakMemory(args.device) as mem:
                     model(img)
             stats = summarize(times)
