@@ -116,3 +116,30 @@ def test_predict_crops_to_image_shape():
     assert not torch.allclose(out[1].hazy_img, out[1].gt_img)
     with pytest.raises(ValueError, match='paired'):
         model(torch.rand(1, 3, 8, 8), mode='loss')
+
+
+def test_optional_perceptual_term_on_a_frozen_backbone():
+    torch.manual_seed(0)
+    model = MODELS.build(
+        dict(type='CBNetDehazeModel', dehazer=DEHAZER,
+             perceptual=dict(
+                 backbone=dict(type='ResNet', depth=18, num_stages=2,
+                               strides=(1, 2), dilations=(1, 1),
+                               out_indices=(0, 1), base_channels=8,
+                               init_cfg=None),
+                 loss_weight=0.5)))
+    torch.nn.init.normal_(model.dehazer.tail.weight, std=0.05)
+    model.train()
+    assert not model.perceptual.training
+    data = model.data_preprocessor(paired_batch(), True)
+    losses = model(**data, mode='loss')
+    pred = model.dehazer(data['inputs'][:, :3])
+    mean = torch.tensor([0.485, 0.456, 0.406]).view(1, 3, 1, 1)
+    std = torch.tensor([0.229, 0.224, 0.225]).view(1, 3, 1, 1)
+    fp = model.perceptual((pred - mean) / std)
+    ft = model.perceptual((data['inputs'][:, 3:] - mean) / std)
+    expected = 0.5 * sum((a - b).abs().mean() for a, b in zip(fp, ft)) / 2
+    torch.testing.assert_close(losses['loss_perceptual'], expected)
+    sum(losses.values()).backward()
+    assert all(p.grad is None for p in model.perceptual.parameters())
+    assert model.dehazer.tail.weight.grad is not None
