@@ -30,9 +30,12 @@ import cbnet_mmdet  # noqa: F401
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+# every detector config (configs/dehaze/dehazer_*.py train a dehazer alone:
+# no detector, nothing for DetInferencer)
 SHIPPED = sorted(
     p for p in glob.glob(osp.join(ROOT, 'configs', '**', '*.py'),
-                         recursive=True) if '_base_' not in p)
+                         recursive=True)
+    if '_base_' not in p and not osp.basename(p).startswith('dehazer_'))
 
 
 @pytest.fixture(scope='module')

@@ -36,9 +36,11 @@ def assert_focal_prior(rpn_head):
 
 
 def test_benchmark_rpn_initialises_the_crpn():
+    from mmengine.registry import init_default_scope
+    init_default_scope('mmdet')  # what the tool's main() sets
     tool = load_tool('benchmark_rpn')
     model = tool.build_rpn('CRPN', 8)
-    assert_focal_prior(model.rpn_head)
+    assert_focal_prior(model.bbox_head)  # MMDet's RPN calls it bbox_head
 
 
 def test_fuzz_inputs_initialises_the_demo_model(cityscapes_like_root):

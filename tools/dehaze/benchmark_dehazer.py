@@ -53,7 +53,9 @@ def main(argv=None) -> dict:
     results = {}
     for name in args.dehazers:
         torch.manual_seed(0)
-        model = MODELS.build(DEHAZERS[name]).to(args.device).eval()
+        model = MODELS.build(DEHAZERS[name])
+        model.init_weights()  # the module's own init, as in training
+        model = model.to(args.device).eval()
         for h, w in sizes:
             img = torch.rand(1, 3, h, w, device=args.device)
             with torch.no_grad():
