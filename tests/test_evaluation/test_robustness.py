@@ -199,6 +199,18 @@ def test_tool_end_to_end(oracle, tmp_path, capsys):
     assert png.shape[1] > png.shape[0]  # two panels side by side
 
 
+def test_clean_run_is_added_for_mpc(oracle, tmp_path, capsys):
+    """Severities without 0 still give P, mPC and rPC (the clean run is
+    added, and said so), instead of silently no summary."""
+    tool = _load(osp.join(ROOT, 'tools', 'analysis_tools',
+                          'test_robustness.py'), 'test_robustness_tool')
+    report = tool.main([oracle['cfg_file'], oracle['ckpt'], '--corruptions',
+                        'fog', '--severities', '1', '--out-dir',
+                        str(tmp_path / 'out')])
+    assert 'severity 0 (clean) added' in capsys.readouterr().out
+    assert report['summaries']['box AP']['mPC'] == 1.0
+
+
 @pytest.mark.slow  # the demo model and CBNet-DD, random weights: ~1 min
 @pytest.mark.parametrize('distill', [False, True])
 def test_tool_runs_demo_and_cbnet_dd(cityscapes_like_root, tmp_path,

@@ -75,6 +75,10 @@ def main(argv=None):
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
     cfg.randomness = dict(seed=args.seed)
+    if any(s > 0 for s in args.severities) and 0 not in args.severities:
+        # P (the clean score) is what mPC and rPC are relative to
+        print('severity 0 (clean) added: P, mPC and rPC need it')
+        args.severities = [0] + list(args.severities)
     os.makedirs(args.out_dir, exist_ok=True)
     run = run_benchmark(cfg, args.checkpoint, args.out_dir,
                         args.corruptions, args.severities, args.betas)
