@@ -29,6 +29,11 @@ def test_tensorboard_receives_the_training_scalars(cityscapes_like_root,
                                                    tmp_path):
     cfg = Config.fromfile(DEMO)
     cfg.merge_from_dict(TENSORBOARD)
+    # MMEngine keeps visualisers by name for the whole process: a private
+    # name, so this Runner does not reuse an earlier test's (which writes
+    # into that test's folder)
+    cfg.visualizer.name = f'cbnet_tensorboard_{tmp_path.name}'
+    cfg.experiment_name = f'cbnet_tensorboard_{tmp_path.name}'
     data = cfg.train_dataloader.dataset.dataset
     data.data_root = cityscapes_like_root + '/'
     for t in data.pipeline:
