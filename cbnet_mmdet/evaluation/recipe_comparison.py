@@ -34,7 +34,8 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
         ('Cascade Mask R-CNN',
          'demo/cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
-        ('Mask R-CNN', 'demo/mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
+        ('Mask R-CNN',
+         'demo/mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
     ],
     # Table 3: trained on foggy images (beta 0.02)
     'ablation': [
@@ -42,14 +43,15 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'cbnet_mit-b0_ablation-ce_1xb4-demo_foggy-cityscapes-like.py'),
         ('+shape', 'demo/ablation/'
          'cbnet_mit-b0_ablation-shape_1xb4-demo_foggy-cityscapes-like.py'),
-        ('+shape +edge', 'demo/ablation/'
-         'cbnet_mit-b0_ablation-shape-edge_1xb4-demo_foggy-cityscapes-like.py'),
+        ('+shape +edge', 'demo/ablation/cbnet_mit-b0_ablation-shape-edge_'
+         '1xb4-demo_foggy-cityscapes-like.py'),
         ('+shape +edge +KD', 'demo/ablation/cbnet-dd_mit-b0_ablation-'
          'shape-edge-kd_1xb4-demo_foggy-cityscapes-like.py'),
     ],
     # proposal recall of the three RPN heads
     'rpn': [
-        ('CBNet CRPN', 'demo/rpn/crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+        ('CBNet CRPN',
+         'demo/rpn/crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
         ('RPNHead', 'demo/rpn/rpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
         ('MMDet CascadeRPNHead',
          'demo/rpn/mmdet-crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
@@ -253,6 +255,11 @@ def _save_untrained(runner, path: str) -> None:
              meta=dict(untrained=True)), path)
 
 
+def result_file(out_dir: str, name: str, seed: int) -> str:
+    """Where :func:`run_recipe` keeps the result of one recipe and seed."""
+    return osp.join(out_dir, slug(name), f'seed{seed}', 'result.json')
+
+
 def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
                cfg_options: Optional[dict] = None) -> dict:
@@ -276,10 +283,10 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     """
     from mmengine.runner import Runner
 
-    run_dir = osp.join(out_dir, slug(name), f'seed{seed}')
-    result_file = osp.join(run_dir, 'result.json')
-    if osp.isfile(result_file):
-        with open(result_file) as f:
+    path = result_file(out_dir, name, seed)
+    run_dir = osp.dirname(path)
+    if osp.isfile(path):
+        with open(path) as f:
             return json.load(f)
     cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
@@ -300,7 +307,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         recipe=name, config=config, seed=seed, budget=asdict(budget),
         train_time_s=train_time, metrics=table['metrics'])
     os.makedirs(run_dir, exist_ok=True)
-    with open(result_file, 'w') as f:
+    with open(path, 'w') as f:
         json.dump(result, f, indent=1)
     return result
 
@@ -367,17 +374,14 @@ def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
         for condition in conditions:
             row = {}
             for col, key, scale in columns:
-                vals = [value(r, condition, key, scale) for r in runs]
-                vals = [v for v in vals if v is not None]
+                pairs = [(value(r, 'clear', key, scale),
+                          value(r, condition, key, scale)) for r in runs]
+                vals = [v for _, v in pairs if v is not None]
                 row[col] = mean_std(vals) if vals else None
                 if condition == 'clear':
                     continue
-                drops = [
-                    value(r, 'clear', key, scale) -
-                    value(r, condition, key, scale) for r in runs
-                    if value(r, 'clear', key, scale) is not None
-                    and value(r, condition, key, scale) is not None
-                ]
+                drops = [c - v for c, v in pairs
+                         if c is not None and v is not None]
                 row[f'{col} drop'] = mean_std(drops) if drops else None
             entry[condition] = row
         summary[recipe] = entry
@@ -509,14 +513,12 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     # seed-major: a comparison cut short still has every recipe at the
     # seeds it finished
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
+    finished = [osp.isfile(result_file(out_dir, n, s)) for n, _, s in jobs]
+    left = finished.count(False)  # runs still to train
     results, spent, fresh = [], 0.0, 0
-    for k, (name, config, seed) in enumerate(jobs, 1):
-        done = osp.isfile(osp.join(out_dir, slug(name), f'seed{seed}',
-                                   'result.json'))
+    for k, ((name, config, seed), done) in enumerate(zip(jobs, finished), 1):
         eta = ''
         if fresh:
-            left = sum(1 for j in jobs[k - 1:] if not osp.isfile(osp.join(
-                out_dir, slug(j[0]), f'seed{j[2]}', 'result.json')))
             eta = f', about {math.ceil(spent / fresh * left / 60)} min left'
         log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
             f'{"already done" if done else "training"}{eta}')
@@ -526,6 +528,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         if not done:
             spent += time.perf_counter() - start
             fresh += 1
+            left -= 1
         results.append(result)
     summary = summarize(results, betas)
     record = dict(

@@ -124,8 +124,8 @@ def test_plot_writes_a_png(tmp_path):
 
 
 @pytest.mark.slow
-def test_compare_end_to_end_trained_beats_untrained(cityscapes_like_root,
-                                                     tmp_path, capsys):
+def test_compare_end_to_end_trained_beats_untrained(
+        cityscapes_like_root, tmp_path, capsys):
     """The CLI on the tiny generated data, one seed: the RPN set's CBNet
     CRPN trained 40 iterations against the same model untrained (0). The
     table has its structure; the trained proposals recall more. A rerun

@@ -155,8 +155,8 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
 
         Returns:
             dict: ``loss_mask`` (an empty dict) and, on the last stage,
-            ``mask_preds``/``mask_targets`` and ``stage_loss_mask`` (the
-            losses, also recorded in ``self._unweighted_losses``).
+            ``mask_preds``/``mask_targets`` (the losses go to
+            ``self._unweighted_losses``).
         """
         if stage != self.num_stages - 1:
             return dict(loss_mask=dict())
@@ -172,7 +172,6 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 rcnn_train_cfg=self.train_cfg[stage],
                 **extra))
         stage_losses = mask_results.pop('loss_mask')
-        mask_results['stage_loss_mask'] = stage_losses
         mask_results['loss_mask'] = dict()
         unweighted = getattr(self, '_unweighted_losses', None)
         if unweighted is None:
