@@ -105,6 +105,10 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
         normalize_by_num_pos (bool): Average the losses over positive
             anchors (True) or over ``anchors / 200`` as MMDet's stage head
             does without a sampler. Defaults to True.
+        deform_impl (str): Stage 2's deformable convolution: ``'gather'``
+            (:class:`CBNetDeformConv2d`, 3-4x faster on CPU) or ``'mmcv'``
+            (``mmcv.ops.DeformConv2d``); the same function and weights.
+            Defaults to ``'gather'``.
         train_cfg (list[dict], optional): One training config per stage
             (assigner, optional sampler, ``allowed_border``, ``pos_weight``).
             None uses ``DEFAULT_TRAIN_CFG``.
@@ -136,6 +140,7 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
                      type='GIoULoss', loss_weight=10.0),
                  obj_prior_prob: float = 0.01,
                  normalize_by_num_pos: bool = True,
+                 deform_impl: str = 'gather',
                  train_cfg: Optional[Union[List[ConfigType],
                                            ConfigType]] = None,
                  test_cfg: OptConfigType = None,
@@ -160,6 +165,7 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
             return dict(
                 type='CBNetStageCascadeRPNHead',
                 normalize_by_num_pos=normalize_by_num_pos,
+                deform_impl=deform_impl,
                 in_channels=in_channels,
                 feat_channels=feat_channels,
                 # Stage 2 needs the strides too: they place its offsets.

