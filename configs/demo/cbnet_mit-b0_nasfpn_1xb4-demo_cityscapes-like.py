@@ -15,7 +15,11 @@ model = dict(
     neck=dict(
         in_channels=_base_.trunk_channels,
         out_channels=width,
-        stack_times=1),
+        stack_times=1,
+        # the cell graph on strides 4-64, as measured in docs/accuracy.md;
+        # the paper configs' faster 'light' path is the demo's `speed` row
+        # (configs/demo/speed/)
+        fine_path='cells'),
     rpn_head=dict(in_channels=width, feat_channels=width),
     roi_head=dict(
         bbox_roi_extractor=dict(out_channels=width),

@@ -3,6 +3,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import torch
 import torch.nn.functional as F
+from mmcv.cnn import ConvModule
 from mmdet.models.necks import NASFPN
 from mmdet.registry import MODELS
 from mmdet.utils import MultiConfig, OptConfigType
@@ -40,6 +41,15 @@ class CBNetNASFPN(NASFPN):
     Levels beyond the five of the cell graph (``num_outs > 5``) are made from
     the coarsest graph output by further stride-2 max pooling (ceil mode).
 
+    ``fine_path='light'`` (a speed setting, see docs/benchmarks.md) moves the
+    cell graph one level coarser, onto strides ``8 * 2**start_level`` ..
+    ``128 * 2**start_level`` (MMDet's NAS-FPN starts at stride 8 too), and
+    makes the finest output as FPN does: a 1x1 lateral convolution of the
+    finest backbone map plus the graph's finest output upsampled, then one
+    3x3 convolution. The outputs keep their strides and sizes; the graph's
+    stride-128 level feeds the cells only. At 512x1024 the cells at stride 4
+    are about two thirds of the default neck's multiply-adds.
+
     Args:
         in_channels (Sequence[int]): Channels of each backbone output, e.g.
             ``[32, 64, 160, 256]`` (MiT-B0) or ``[64, 128, 320, 512]``
@@ -57,6 +67,10 @@ class CBNetNASFPN(NASFPN):
             Defaults to None.
         upsample_mode (str): ``'nearest'`` or ``'bilinear'``: how merging
             cells enlarge a coarser input. Defaults to ``'nearest'``.
+        fine_path (str): ``'cells'`` (default, the paper's reading: the
+            cell graph spans the five finest levels) or ``'light'`` (the
+            graph starts one level coarser; the finest level is an FPN-style
+            lateral + top-down sum and one 3x3 convolution).
         channels_last (bool, optional): Run the cells on ``channels_last``
             tensors (outputs are returned contiguous NCHW, as the RoI and
             deformable-convolution ops downstream expect). ``None``
@@ -77,6 +91,7 @@ class CBNetNASFPN(NASFPN):
         end_level: int = -1,
         norm_cfg: OptConfigType = None,
         upsample_mode: str = 'nearest',
+        fine_path: str = 'cells',
         channels_last: Optional[bool] = None,
         init_cfg: MultiConfig = dict(type='Caffe2Xavier', layer='Conv2d')
     ) -> None:
@@ -94,6 +109,17 @@ class CBNetNASFPN(NASFPN):
             raise ValueError(
                 "CBNetNASFPN: upsample_mode must be 'nearest' or "
                 f"'bilinear', got {upsample_mode!r}")
+        if fine_path not in ('cells', 'light'):
+            raise ValueError(
+                "CBNetNASFPN: fine_path must be 'cells' or 'light', got "
+                f'{fine_path!r}')
+        light = fine_path == 'light'
+        if light and (start_level + 1 >= num_ins or end_level != -1):
+            raise ValueError(
+                "CBNetNASFPN: fine_path='light' needs a backbone level "
+                'above start_level for the cell graph and end_level=-1, got '
+                f'start_level={start_level}, end_level={end_level} with '
+                f'{num_ins} inputs')
         used = (num_ins if end_level == -1 else end_level + 1) - start_level
         if used > NUM_GRAPH_LEVELS:
             raise ValueError(
@@ -110,11 +136,28 @@ class CBNetNASFPN(NASFPN):
             out_channels=out_channels,
             num_outs=NUM_GRAPH_LEVELS,
             stack_times=stack_times,
-            start_level=start_level,
+            # the graph's finest level is one coarser on the light path
+            start_level=start_level + int(light),
             end_level=end_level,
             norm_cfg=norm_cfg,
             init_cfg=init_cfg)
         self.num_outs = num_outs
+        self.fine_path = fine_path
+        self.fine_level = start_level
+        if light:
+            self.fine_lateral = ConvModule(
+                in_channels[start_level],
+                out_channels,
+                1,
+                norm_cfg=norm_cfg,
+                act_cfg=None)
+            self.fine_conv = ConvModule(
+                out_channels,
+                out_channels,
+                3,
+                padding=1,
+                norm_cfg=norm_cfg,
+                act_cfg=None)
         self.upsample_mode = upsample_mode
         self.channels_last = channels_last
         # Keep the ceil(H / s) size rule on the extra (pooled) levels.
@@ -151,6 +194,12 @@ class CBNetNASFPN(NASFPN):
                 for x in inputs
             ]
         outs: List[Tensor] = list(super().forward(inputs))
+        if self.fine_path == 'light':
+            fine = self.fine_lateral(inputs[self.fine_level])
+            fine = fine + F.interpolate(
+                outs[0], size=fine.shape[-2:], mode=self.upsample_mode)
+            # the stride-128 graph level is not an output
+            outs = [self.fine_conv(fine)] + outs[:NUM_GRAPH_LEVELS - 1]
         for _ in range(self.num_outs - NUM_GRAPH_LEVELS):
             outs.append(F.max_pool2d(outs[-1], 2, stride=2, ceil_mode=True))
         return tuple(x.contiguous() for x in outs)

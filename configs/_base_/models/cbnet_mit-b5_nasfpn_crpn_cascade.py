@@ -32,6 +32,11 @@ model = dict(
         out_channels=256,  # paper: H/4 x W/4 x 256
         num_outs=5,  # strides 4, 8, 16, 32, 64
         stack_times=7,  # NAS-FPN's published depth
+        # merging cells on strides 8-128, the stride-4 output made FPN-style
+        # (lateral + top-down + one 3x3 conv): the same five output levels
+        # at a third of the latency (docs/benchmarks.md, issue 18); 'cells'
+        # runs the cell graph on strides 4-64 (our first reading)
+        fine_path='light',
         norm_cfg=dict(type='BN', requires_grad=True)),
     rpn_head=dict(
         type='CBNetCascadeRPNHead',

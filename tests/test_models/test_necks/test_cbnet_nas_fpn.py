@@ -125,6 +125,8 @@ def test_gradients_reach_every_input():
     (dict(start_level=4), 'start_level=4'),
     (dict(in_channels=[8, 8, 8, 8, 8, 8]), 'more than'),
     (dict(end_level=2), 'end_level=2'),
+    (dict(fine_path='fast'), 'fine_path'),
+    (dict(fine_path='light', start_level=3), 'needs a backbone level'),
 ])
 def test_bad_config(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -168,3 +170,60 @@ def test_channels_last_is_the_same_function(img_hw):
     assert all(o.is_contiguous() for o in outs)
     for a, b in zip(outs, plain(feats)):
         torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize('img_hw', [(64, 96), (97, 75), (5, 3)])
+@pytest.mark.parametrize('num_outs', [5, 6])
+def test_light_fine_path_keeps_levels(img_hw, num_outs):
+    neck = build(fine_path='light', num_outs=num_outs, stack_times=2)
+    outs = neck(mit_like_feats(MIT_B0, img_hw, batch=2))
+    assert [tuple(o.shape) for o in outs] == [
+        (2, 16, math.ceil(img_hw[0] / s), math.ceil(img_hw[1] / s))
+        for s in (4, 8, 16, 32, 64, 128)[:num_outs]
+    ]
+    assert all(torch.isfinite(o).all() and o.is_contiguous() for o in outs)
+
+
+def test_light_fine_path_is_nasfpn_from_stride_8_plus_fpn_level():
+    """Reference: MMDet's NASFPN on the three coarser MiT maps (P3-P7 at
+    strides 8-128) and, at stride 4, FPN's top-down step: lateral 1x1 of the
+    finest map + nearest-upsampled stride-8 output, then a 3x3 conv."""
+    torch.manual_seed(0)
+    neck = build(fine_path='light', stack_times=2, channels_last=False)
+    ref = NASFPN(in_channels=MIT_B0, out_channels=16, num_outs=5,
+                 stack_times=2, start_level=1)
+    ref.load_state_dict(
+        {k: v for k, v in neck.state_dict().items()
+         if not k.startswith('fine_')})
+    img_hw = (128, 256)  # even sizes: MMDet floors where we ceil
+    feats = mit_like_feats(MIT_B0, img_hw)
+    with torch.no_grad():
+        outs = neck(feats)
+        want = list(ref(feats))
+        fine = neck.fine_lateral.conv(feats[0]) + F.interpolate(
+            want[0], scale_factor=2, mode='nearest')
+        fine = F.conv2d(fine, neck.fine_conv.conv.weight,
+                        neck.fine_conv.conv.bias, padding=1)
+    torch.testing.assert_close(outs[0], fine, rtol=1e-5, atol=1e-5)
+    for got, exp in zip(outs[1:], want[:4]):
+        torch.testing.assert_close(got, exp, rtol=1e-5, atol=1e-5)
+
+
+def test_light_fine_path_has_no_cells_at_stride_4():
+    """The point of the light path: no merging cell runs at the finest
+    level, so it costs a fraction of the default's multiply-adds."""
+    from mmengine.analysis import FlopAnalyzer
+    feats = tuple(mit_like_feats(MIT_B5, (128, 256)))
+    flops = {}
+    for fine_path in ('cells', 'light'):
+        neck = build(in_channels=MIT_B5, out_channels=64, stack_times=3,
+                     fine_path=fine_path, channels_last=False).eval()
+        flops[fine_path] = FlopAnalyzer(neck, (feats, )).total()
+    assert flops['light'] < 0.5 * flops['cells']  # measured 0.45
+
+
+def test_light_fine_path_gradients_reach_every_input():
+    neck = build(fine_path='light')
+    feats = [f.requires_grad_() for f in mit_like_feats(MIT_B0, (64, 64))]
+    sum(o.sum() for o in neck(feats)).backward()
+    assert all(f.grad is not None and f.grad.abs().sum() > 0 for f in feats)
