@@ -166,6 +166,112 @@ def make_batch(batch_size: int = 1,
         with_mask=with_mask)
 
 
+def realistic_proposals(size: Tuple[int, int],
+                        num: int = 1000,
+                        min_side: float = 8.0,
+                        max_side: float = 256.0,
+                        seed: int = 0) -> torch.Tensor:
+    """A fixed proposal set shaped like a trained RPN's output.
+
+    Random weights make each model's RPN propose arbitrary boxes, and the
+    cost of the RoI heads depends on them (RoIAlign with ``sampling_ratio=0``
+    samples ``ceil(roi_size / output_size)`` points per bin, and the level
+    of every RoI follows its size). The benchmark therefore feeds every
+    two-stage model the same proposals: ``num`` boxes with centres uniform
+    over the image, a scale ``sqrt(w * h)`` log-uniform in
+    ``[min_side, max_side]`` pixels at a 512-pixel image height (scaled
+    with the height: Cityscapes' instances at 1024x2048 are about 10 to 500
+    pixels) and an aspect ratio ``h / w`` log-uniform in ``[0.5, 2]``
+    (pedestrians to cars), clipped to the image; scores descend from 1.
+
+    Args:
+        size (tuple[int, int]): Image height and width, pixels.
+        num (int): Proposals (the configs' k = 1000).
+        min_side (float): Smallest scale at height 512, pixels.
+        max_side (float): Largest scale at height 512, pixels.
+        seed (int): Seed of a private generator.
+
+    Returns:
+        Tensor: ``Tensor[num, 4]`` boxes ``(x1, y1, x2, y2)``.
+    """
+    h, w = size
+    if num < 1 or min_side <= 0 or max_side < min_side:
+        raise ValueError(
+            f'realistic_proposals: need num >= 1 and 0 < min_side <= '
+            f'max_side, got num={num}, min_side={min_side}, '
+            f'max_side={max_side}')
+    gen = torch.Generator().manual_seed(seed)
+
+    def log_uniform(low, high):
+        u = torch.rand(num, generator=gen)
+        return torch.exp(torch.log(torch.tensor(low)) + u * (
+            torch.log(torch.tensor(high)) - torch.log(torch.tensor(low))))
+
+    scale = log_uniform(min_side, max_side) * (h / 512)
+    ratio = log_uniform(0.5, 2.0)
+    bw, bh = scale / ratio.sqrt(), scale * ratio.sqrt()
+    cx = torch.rand(num, generator=gen) * w
+    cy = torch.rand(num, generator=gen) * h
+    boxes = torch.stack([cx - bw / 2, cy - bh / 2, cx + bw / 2,
+                         cy + bh / 2], dim=1)
+    boxes[:, 0::2] = boxes[:, 0::2].clamp(0, w)
+    boxes[:, 1::2] = boxes[:, 1::2].clamp(0, h)
+    return boxes
+
+
+class FixedProposals:
+    """Feed a detector's RoI head a fixed proposal set at inference.
+
+    Within the context, the detector's ``rpn_head.predict`` still runs (its
+    cost is measured), but its result is replaced by
+    :func:`realistic_proposals` for every image (the same boxes for every
+    model). Only inference is affected: training samples a fixed number of
+    RoIs from the proposals and the ground truth. A detector without an
+    ``rpn_head`` (single-stage) is left alone.
+
+    Args:
+        model (nn.Module): The detector.
+        num (int): Proposals per image.
+        seed (int): Seed of the proposal set.
+    """
+
+    def __init__(self, model: nn.Module, num: int = 1000,
+                 seed: int = 0) -> None:
+        self.head = getattr(model, 'rpn_head', None)
+        self.num, self.seed = num, seed
+
+    def _predict(self, x, batch_data_samples, rescale=False):
+        from mmengine.structures import InstanceData
+        results = self._original(x, batch_data_samples, rescale=rescale)
+        fixed = []
+        for result, sample in zip(results, batch_data_samples):
+            boxes = realistic_proposals(
+                sample.metainfo['img_shape'], self.num, seed=self.seed)
+            boxes = boxes.to(result.bboxes.device, result.bboxes.dtype)
+            fixed.append(InstanceData(
+                bboxes=boxes,
+                scores=torch.linspace(1, 0.01, len(boxes)).to(boxes),
+                labels=boxes.new_zeros(len(boxes), dtype=torch.long)))
+        return fixed
+
+    def __enter__(self):
+        if self.head is not None:
+            # an instance attribute already (a profiler's wrapper) is put
+            # back on exit; otherwise the class's method shows again
+            self._own = vars(self.head).get('predict')
+            self._original = self.head.predict
+            self.head.predict = self._predict
+        return self
+
+    def __exit__(self, *exc):
+        if self.head is not None:
+            if self._own is None:
+                del self.head.predict
+            else:
+                self.head.predict = self._own
+        return False
+
+
 def preprocess(model: nn.Module, batch: dict, training: bool) -> dict:
     """Run the model's data preprocessor on a copy of ``batch``.
 

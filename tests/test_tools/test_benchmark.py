@@ -199,3 +199,63 @@ def test_build_detector_is_seeded():
     assert all(torch.equal(a[k], b[k]) for k in a)
     c = build_detector(cfg, seed=1).state_dict()
     assert not all(torch.equal(a[k], c[k]) for k in a)
+
+
+def test_realistic_proposals_distribution():
+    from cbnet_mmdet.utils.benchmark import realistic_proposals
+    boxes = realistic_proposals((512, 1024), num=4000)
+    assert boxes.shape == (4000, 4)
+    assert (boxes[:, 0] >= 0).all() and (boxes[:, 2] <= 1024).all()
+    assert (boxes[:, 1] >= 0).all() and (boxes[:, 3] <= 512).all()
+    assert (boxes[:, 2] >= boxes[:, 0]).all()
+    # scale log-uniform in [8, 256] (median 45 px); the boxes that do not
+    # touch the border lean small (large ones are clipped more often)
+    inner = ((boxes[:, 0] > 0) & (boxes[:, 1] > 0) & (boxes[:, 2] < 1024) &
+             (boxes[:, 3] < 512))
+    wh = (boxes[inner, 2:] - boxes[inner, :2])
+    scale = (wh[:, 0] * wh[:, 1]).sqrt()
+    assert 7.9 < scale.min() and scale.max() < 256.1
+    assert 28 < scale.median() < 45
+    # scaled with the image height, same seed -> same boxes
+    big = realistic_proposals((1024, 2048), num=4000)
+    torch.testing.assert_close(big[inner], boxes[inner] * 2)
+    assert torch.equal(realistic_proposals((512, 1024), num=4000), boxes)
+    with pytest.raises(ValueError, match='min_side'):
+        realistic_proposals((64, 64), min_side=0)
+
+
+def test_fixed_proposals_feed_the_roi_head_and_undo():
+    """Inside the context the RPN still runs but the RoI head sees the
+    fixed boxes; afterwards the class's method is back."""
+    from cbnet_mmdet.utils.benchmark import (FixedProposals, build_detector,
+                                             load_benchmark_cfg, make_batch,
+                                             preprocess)
+    cfg = load_benchmark_cfg(osp.join(
+        ROOT, 'configs', 'demo',
+        'mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'))
+    model = build_detector(cfg).eval()
+    data = preprocess(model, make_batch(1, (64, 128), 2), False)
+    seen, calls = [], []
+    roi_predict = model.roi_head.predict
+    rpn_predict = model.rpn_head.predict
+
+    def spy_roi(x, proposals, *args, **kwargs):
+        seen.append(proposals[0].bboxes.clone())
+        return roi_predict(x, proposals, *args, **kwargs)
+
+    def spy_rpn(*args, **kwargs):
+        calls.append(1)
+        return rpn_predict(*args, **kwargs)
+
+    model.roi_head.predict = spy_roi
+    model.rpn_head.predict = spy_rpn
+    with torch.no_grad(), FixedProposals(model, num=50):
+        model(**data, mode='predict')
+    assert calls == [1]  # the RPN's cost is still measured
+    torch.testing.assert_close(
+        seen[0], benchmark_utils.realistic_proposals((64, 128), num=50))
+    assert model.rpn_head.predict is spy_rpn  # put back
+    del model.rpn_head.predict
+    with FixedProposals(model):
+        pass
+    assert 'predict' not in vars(model.rpn_head)

@@ -48,6 +48,7 @@ import os.path as osp
 import platform
 import sys
 import time
+from contextlib import nullcontext
 from datetime import datetime, timezone
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -70,6 +71,11 @@ MODELS = {
     'fpn_1x_cityscapes.py',
     'yolox_s': 'configs/baselines/yolox_s_8xb8-300e_cityscapes.py',
 }
+#: how the inference RoI heads got their proposals, for the tables
+PROPOSALS = dict(
+    fixed='the same fixed, realistic 1000 proposals per image for every '
+    'model (realistic_proposals)',
+    model="each random-weight RPN's own proposals")
 #: the reference row of the ratios
 REFERENCE = 'cascade-mask-rcnn_swin-s'
 
@@ -97,6 +103,12 @@ def parse_args(argv=None):
     p.add_argument('--warmup', type=int, default=1)
     p.add_argument('--num-items', type=int, default=8,
                    help='ground-truth instances per image (training)')
+    p.add_argument('--proposals', choices=['fixed', 'model'],
+                   default='fixed',
+                   help='inference RoI heads run on a fixed, realistic '
+                   'proposal set, the same for every model (default; '
+                   'cbnet_mmdet.utils.benchmark.realistic_proposals), or '
+                   'on what each random-weight RPN proposes')
     p.add_argument('--no-train', action='store_true')
     p.add_argument('--no-flops', action='store_true')
     p.add_argument('--scale-models', nargs='*',
@@ -167,9 +179,12 @@ class Bench:
     def predict_call(self, name, raw):
         model, torch = self.models[name], self.torch
 
+        fixed = self.args.proposals == 'fixed'
+
         def call():
             model.eval()
-            with torch.no_grad(), self.autocast():
+            with torch.no_grad(), self.autocast(), \
+                    self.B.FixedProposals(model) if fixed else nullcontext():
                 model(**self.B.preprocess(model, raw, False),
                       mode='predict')
 
@@ -353,7 +368,8 @@ def markdown(meta, results, scaling):
     lines = [
         f'Input {h}x{w}, {meta["num_items"]} instances per image (training)'
         f', {meta["repeats"]} timed repeats after {meta["warmup"]} warm-up, '
-        f'random weights.', '',
+        f'random weights; inference RoI heads on '
+        f'{PROPOSALS[meta.get("proposals", "model")]}.', '',
         f'- command: `{meta["command"]}`',
         f'- date: {meta["date"]}, wall time {_f(meta.get("wall_s"), "{:.0f}")}'
         ' s',
@@ -465,6 +481,7 @@ def main(argv=None):
     omp = os.environ.get('OMP_NUM_THREADS')
     meta = dict(
         size=args.size, batch_sizes=args.batch_sizes, repeats=args.repeats,
+        proposals=args.proposals,
         warmup=args.warmup, num_items=args.num_items,
         machine=machine(args), date=date, load_start=load_start,
         load_end=load_average(),

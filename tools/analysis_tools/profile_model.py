@@ -29,6 +29,7 @@ import os.path as osp
 import statistics
 import sys
 import time
+from contextlib import nullcontext
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 if ROOT not in sys.path:
@@ -61,6 +62,11 @@ def parse_args(argv=None):
     p.add_argument('--cfg-options', nargs='+', action=DictAction,
                    help='override config keys, e.g. '
                    'optim_wrapper.optimizer.foreach=False')
+    p.add_argument('--proposals', choices=['fixed', 'model'],
+                   default='fixed',
+                   help='inference RoI heads on the benchmark\'s fixed, '
+                   'realistic proposals (default) or on the random-weight '
+                   'RPN\'s own')
     p.add_argument('--out', help='write the results as JSON here')
     args = p.parse_args(argv)
     for name in ('warmup', 'repeats', 'top', 'batch_size'):
@@ -133,9 +139,12 @@ def build(args):
     if args.mode in ('infer', 'both'):
         data = B.preprocess(model, raw, False)
 
+        fixed = args.proposals == 'fixed'
+
         def infer():
             model.eval()
-            with torch.no_grad():
+            with torch.no_grad(), \
+                    B.FixedProposals(model) if fixed else nullcontext():
                 model(**data, mode='predict')
 
         calls['infer'] = infer
