@@ -1,5 +1,5 @@
 """Deformable convolution as one gather and one matrix product."""
-from typing import Tuple, Union
+from typing import Optional, Tuple, Union
 
 import torch
 import torch.nn.functional as F
@@ -103,6 +103,9 @@ class CBNetDeformConv2d(nn.Module):
         out_channels (int): Output channels.
         kernel_size (int | tuple[int, int]): Kernel size.
         stride, padding, dilation (int | tuple[int, int]): As ``nn.Conv2d``.
+        weight (nn.Parameter, optional): Use this ``Tensor[out_channels,
+            in_channels, kh, kw]`` parameter (shared, not re-initialised,
+            no random numbers drawn) instead of a new one.
     """
 
     def __init__(self,
@@ -111,15 +114,21 @@ class CBNetDeformConv2d(nn.Module):
                  kernel_size: Union[int, Tuple[int, int]],
                  stride: Union[int, Tuple[int, int]] = 1,
                  padding: Union[int, Tuple[int, int]] = 0,
-                 dilation: Union[int, Tuple[int, int]] = 1) -> None:
+                 dilation: Union[int, Tuple[int, int]] = 1,
+                 weight: Optional[nn.Parameter] = None) -> None:
         super().__init__()
         self.in_channels, self.out_channels = in_channels, out_channels
         self.kernel_size = _pair(kernel_size)
         self.stride, self.padding = _pair(stride), _pair(padding)
         self.dilation = _pair(dilation)
-        self.weight = nn.Parameter(
-            torch.empty(out_channels, in_channels, *self.kernel_size))
-        nn.init.kaiming_uniform_(self.weight, a=5**0.5)
+        shape = (out_channels, in_channels, *self.kernel_size)
+        if weight is None:
+            weight = nn.Parameter(torch.empty(shape))
+            nn.init.kaiming_uniform_(weight, a=5**0.5)
+        elif tuple(weight.shape) != shape:
+            raise ValueError(f'CBNetDeformConv2d: weight of shape '
+                             f'{tuple(weight.shape)}, expected {shape}')
+        self.weight = weight
 
     @classmethod
     def from_mmcv(cls, conv: nn.Module) -> 'CBNetDeformConv2d':
@@ -131,10 +140,10 @@ class CBNetDeformConv2d(nn.Module):
                 f'got {conv.groups} and {conv.deform_groups}')
         if getattr(conv, 'bias', None) is not None:
             raise ValueError('CBNetDeformConv2d has no bias')
-        new = cls(conv.in_channels, conv.out_channels, conv.kernel_size,
-                  conv.stride, conv.padding, conv.dilation)
-        new.weight = conv.weight
-        return new
+        # the same parameter, and no random numbers drawn: a model built
+        # with either implementation gets the same initial weights
+        return cls(conv.in_channels, conv.out_channels, conv.kernel_size,
+                   conv.stride, conv.padding, conv.dilation, conv.weight)
 
     def forward(self, x: Tensor, offset: Tensor) -> Tensor:
         """``Tensor[N, C, H, W]``, offsets ``Tensor[N, 2*kh*kw, H', W']`` ->

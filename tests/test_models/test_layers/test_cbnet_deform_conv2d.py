@@ -115,3 +115,18 @@ def test_cascade_rpn_uses_it_with_mmcv_weights():
         outs = [heads[i].stages[1](feats, offsets) for i in heads]
     for a, b in zip(*[o[1] for o in outs]):  # objectness per level
         torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5)
+
+
+def test_swapping_draws_no_random_numbers():
+    """A model built with either implementation has the same weights
+    (the swap shares mmcv's parameter and draws nothing)."""
+    from mmdet.registry import MODELS
+    states = []
+    for impl in ('gather', 'mmcv'):
+        torch.manual_seed(0)
+        head = MODELS.build(dict(type='CBNetCascadeRPNHead', in_channels=8,
+                                 feat_channels=8, deform_impl=impl))
+        states.append((head.state_dict(), torch.rand(1)))
+    for key, value in states[0][0].items():
+        assert torch.equal(value, states[1][0][key]), key
+    assert torch.equal(states[0][1], states[1][1])
