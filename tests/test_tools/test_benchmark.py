@@ -259,3 +259,24 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
     with FixedProposals(model):
         pass
     assert 'predict' not in vars(model.rpn_head)
+
+
+def test_model_cfg_overrides_one_model_only(capsys):
+    sys.path.insert(0, osp.dirname(SCRIPT))
+    try:
+        import benchmark as bench_script
+    finally:
+        sys.path.pop(0)
+    args = bench_script.parse_args([
+        '--models', 'paper=cbnet_mit-b0', 'cbnet_mit-b0', '--model-cfg',
+        'paper', 'model.neck.fine_path=cells', '--train-batch-size', '2'
+    ])
+    assert args.configs['paper'] == args.configs['cbnet_mit-b0']
+    assert args.overrides == {'paper': {'model.neck.fine_path': 'cells'}}
+    assert args.train_batch_size == 2
+    for bad, match in ((['--model-cfg', 'nope', 'a=1'], 'not one of'),
+                       (['--model-cfg', 'cbnet_mit-b0', 'a'], 'KEY=VALUE'),
+                       (['--train-batch-size', '0'], 'at least 1')):
+        with pytest.raises(SystemExit):
+            bench_script.parse_args(['--models', 'cbnet_mit-b0'] + bad)
+        assert match in capsys.readouterr().err

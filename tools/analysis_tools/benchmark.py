@@ -109,6 +109,13 @@ def parse_args(argv=None):
                    'proposal set, the same for every model (default; '
                    'cbnet_mmdet.utils.benchmark.realistic_proposals), or '
                    'on what each random-weight RPN proposes')
+    p.add_argument('--train-batch-size', type=int, default=1,
+                   help='images per timed training step')
+    p.add_argument('--model-cfg', nargs='+', action='append', default=[],
+                   metavar=('NAME', 'KEY=VALUE'),
+                   help='config overrides of one model, e.g. --model-cfg '
+                   'b5_cells model.neck.fine_path=cells (repeatable; with '
+                   '--models b5_cells=cbnet_mit-b5 the same config twice)')
     p.add_argument('--no-train', action='store_true')
     p.add_argument('--no-flops', action='store_true')
     p.add_argument('--scale-models', nargs='*',
@@ -131,18 +138,30 @@ def parse_args(argv=None):
         p.error('--amp needs a CUDA --device')
     if args.threads is not None and args.threads < 1:
         p.error('--threads must be at least 1')
+    if args.train_batch_size < 1:
+        p.error('--train-batch-size must be at least 1')
     configs = {}
     for item in args.models:
         name, _, path = item.partition('=')
-        if not path:
-            if name not in MODELS:
-                p.error(f'unknown model {name!r}; known: {list(MODELS)} '
+        if not path or path in MODELS:
+            key = path or name
+            if key not in MODELS:
+                p.error(f'unknown model {key!r}; known: {list(MODELS)} '
                         f'(or pass NAME=CONFIG)')
-            path = osp.join(ROOT, MODELS[name])
+            path = osp.join(ROOT, MODELS[key])
         if not osp.isfile(path):
             p.error(f'config of {name!r} not found: {path}')
         configs[name] = path
     args.configs = configs
+    args.overrides = {}
+    for name, *pairs in args.model_cfg:
+        if name not in configs:
+            p.error(f'--model-cfg {name}: not one of --models {list(configs)}')
+        for pair in pairs:
+            key, sep, value = pair.partition('=')
+            if not sep or not key:
+                p.error(f'--model-cfg {name}: {pair!r} is not KEY=VALUE')
+            args.overrides.setdefault(name, {})[key] = value
     args.scale_models = [m for m in args.scale_models if m in configs]
     return args
 
@@ -157,8 +176,14 @@ class Bench:
         self.B, self.torch, self.args = B, torch, args
         self.device = args.device
         self.models, self.optims = {}, {}
+        from mmengine.config import DictAction
         for name, path in args.configs.items():
             cfg = B.load_benchmark_cfg(path)
+            if args.overrides.get(name):
+                # the values parsed as on MMEngine's command lines
+                cfg.merge_from_dict({
+                    k: DictAction._parse_iterable(v)
+                    for k, v in args.overrides[name].items()})
             model = B.build_detector(cfg).to(self.device)
             self.models[name] = model
             self.optims[name] = cfg.get('optim_wrapper')
@@ -271,7 +296,8 @@ def run(args):
                    for n in args.scale_models if args.scale_sizes}
         calls, wrappers = {}, {}
         for n in names:
-            calls[n], wrappers[n] = bench.train_call(n, bench.batch(n, size))
+            calls[n], wrappers[n] = bench.train_call(
+                n, bench.batch(n, size, args.train_batch_size))
         meas = bench.measure(calls, args.repeats, args.warmup)
         for n in names:
             results[n]['train_step'] = dict(
@@ -299,7 +325,8 @@ def run(args):
             calls = {}
             for n in args.scale_models:
                 calls[n], _ = bench.train_call(
-                    n, bench.batch(n, size, num_items=k))
+                    n, bench.batch(n, size, args.train_batch_size,
+                                   num_items=k))
             meas = bench.measure(calls, args.repeats, args.warmup)
             for n in args.scale_models:
                 scaling['items'].setdefault(n, []).append(dict(
@@ -380,11 +407,17 @@ def markdown(meta, results, scaling):
         f'end {load("load_end")}',
         f'- software: Python {mach["python"]}, torch {mach["torch"]}, mmcv '
         f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}',
-        f'- peak memory: {meta.get("peak_memory", "-")}', '',
+        f'- peak memory: {meta.get("peak_memory", "-")}',
+    ] + [
+        f'- {name}: ' + ', '.join(f'`{k}={v}`' for k, v in opts.items())
+        for name, opts in meta.get('overrides', {}).items()
+    ] + [
+        '',
         '| model | params (M) | GFLOPs infer / backbone+neck | latency b1 '
         '(s, median [IQR]) | img/s ' +
         ' | img/s '.join(f'b{b}' for b in meta['batch_sizes']) +
-        ' | train step b1 (s) | peak mem infer / train (MiB) '
+        f' | train step b{meta.get("train_batch_size", 1)} (s) | peak mem '
+        'infer / train (MiB) '
         '| latency / Swin-S | train / Swin-S | params / Swin-S |',
         '|---|---|---|---|' + '---|' * len(meta['batch_sizes']) +
         '---|---|---|---|---|'
@@ -481,7 +514,8 @@ def main(argv=None):
     omp = os.environ.get('OMP_NUM_THREADS')
     meta = dict(
         size=args.size, batch_sizes=args.batch_sizes, repeats=args.repeats,
-        proposals=args.proposals,
+        proposals=args.proposals, train_batch_size=args.train_batch_size,
+        overrides=args.overrides,
         warmup=args.warmup, num_items=args.num_items,
         machine=machine(args), date=date, load_start=load_start,
         load_end=load_average(),
