@@ -39,11 +39,14 @@ frame. Distance transforms are exact and vectorised: prefix max / min
 scans along rows, then a min-plus pass along columns (``O(N H W H)``), with
 a Python loop over rows / columns only, never over instances.
 
-Speed (CPU): the edge term runs on flat / cell-major layouts with in-place
+Speed (CPU): masks and distance maps run on flat / cell-major layouts
+(contiguous operands), the distance transforms in int16, with in-place
 operations and a hand-fused forward / backward, because on CPU every fresh
-full-size buffer (allocation, page faults) costs more than the arithmetic
-on it; ``tools/analysis_tools/benchmark_mask_loss.py`` measures it.
+full-size buffer (allocation, page faults) and every strided operand costs
+more than the arithmetic on it;
+``tools/analysis_tools/benchmark_mask_loss.py`` measures it.
 """
+import functools
 import math
 from typing import Optional
 
@@ -122,37 +125,34 @@ def mask_contour(masks: Tensor, kernel_size: int = 3) -> Tensor:
 
 def _erode_flat(masks: Tensor, rad: int) -> Tensor:
     """Square binary erosion (window ``2 rad + 1``, zero padding) of a
-    contiguous ``Tensor[M, H, W]``, bool (AND) or float 0 / 1 (min).
+    contiguous bool ``Tensor[M, H, W]``.
 
     Separable: along W, then along H. Each pass combines shifted views of
     the *flattened* masks, so that every operand is one contiguous block
-    (much faster than 2-D slices on CPU); the ``rad`` pixels next to each
-    border, where the shifts would wrap into the next row / instance, are
-    the ones the zero padding erodes, and are set to 0 afterwards.
+    (much faster than 2-D slices on CPU). Only the ``rad`` pixels next to
+    each border see values wrapped in from the next row / instance (or
+    left unset at the flat ends: the buffers need no zero fill), and the
+    zero padding erodes exactly those: one AND with the interior clears
+    them at the end.
     """
     num, h, w = masks.shape
-    combine = torch.bitwise_and if masks.dtype == torch.bool else \
-        torch.minimum
+    if min(h, w) <= 2 * rad:
+        return torch.zeros_like(masks)
     out = masks
-    for step, size in ((1, w), (w, h)):
+    for step in (1, w):
         src = out.reshape(-1)
-        out = torch.zeros_like(src)
-        if size > 2 * rad:
-            total, span = src.numel(), 2 * rad * step
-            inner = out[rad * step:total - rad * step]
-            combine(src[:total - span], src[step:total - span + step],
-                    out=inner)
-            for i in range(2, 2 * rad + 1):
-                combine(inner, src[i * step:total - span + i * step],
-                        out=inner)
-        out = out.view(num, h, w)
-        if step == 1:
-            out[:, :, :rad] = 0
-            out[:, :, w - rad:] = 0
-        else:
-            out[:, :rad] = 0
-            out[:, h - rad:] = 0
-    return out
+        out = torch.empty_like(src)
+        total, span = src.numel(), 2 * rad * step
+        inner = out[rad * step:total - rad * step]
+        torch.bitwise_and(src[:total - span], src[step:total - span + step],
+                          out=inner)
+        for i in range(2, 2 * rad + 1):
+            torch.bitwise_and(inner, src[i * step:total - span + i * step],
+                              out=inner)
+    interior = torch.zeros(h, w, dtype=torch.bool, device=masks.device)
+    interior[rad:h - rad, rad:w - rad] = True
+    return out.view(num, h * w).bitwise_and_(interior.view(-1)).view(
+        num, h, w)
 
 
 def dice_coefficient(probs: Tensor,
@@ -222,16 +222,18 @@ def squared_distance_to_set(points: Tensor,
         return _upsample(dist_sq, stride, h, w)
 
 
-def _coarsen(points: Tensor, stride: int) -> Tensor:
+def _coarsen(points: Tensor,
+             stride: int,
+             dtype: torch.dtype = torch.float32) -> Tensor:
     """Any-pool a set ``Tensor[M, H, W]`` (bool, or float 0 / 1) over
     ``stride x stride`` cells (zero padding to a multiple of ``stride``).
 
     Returns:
-        Tensor: float32 0 / 1 ``Tensor[ceil(H / s), ceil(W / s), M]``, the
-        cell-major layout that :func:`_squared_edt_hwm` works on.
+        Tensor: 0 / 1 ``Tensor[ceil(H / s), ceil(W / s), M]`` of ``dtype``,
+        the cell-major layout that :func:`_squared_edt_hwm` works on.
     """
     if stride == 1:
-        return _as_float(points.permute(1, 2, 0).contiguous())
+        return _as_float(points.permute(1, 2, 0).contiguous(), dtype)
     combine = torch.bitwise_or if points.dtype == torch.bool else \
         torch.maximum
     num, h, w = points.shape
@@ -240,18 +242,28 @@ def _coarsen(points: Tensor, stride: int) -> Tensor:
         padded = points.new_zeros(num, hc * stride, wc * stride)
         padded[:, :h, :w] = points
         points = padded
-    # rows: any over the stride rows of a cell (contiguous blocks)
-    rows = points.view(num, hc, stride, wc * stride)
-    pooled = combine(rows[:, :, 0], rows[:, :, 1])
-    for i in range(2, stride):
-        combine(pooled, rows[:, :, i], out=pooled)
-    # columns, written straight into the [hc, wc, M] layout
-    cells = pooled.view(num, hc, wc, stride).permute(1, 2, 0, 3)
-    out = combine(cells[..., 0], cells[..., 1],
-                  out=points.new_empty(hc, wc, num))
-    for j in range(2, stride):
-        combine(out, cells[..., j], out=out)
-    return _as_float(out)
+    h, w = hc * stride, wc * stride
+    # any over the `stride` pixels right of / below each pixel, on the
+    # flattened masks (contiguous operands: much faster on CPU than
+    # strided 2-D slices); the wrapped values at the right / bottom ends
+    # are never read below, only cells' top-left pixels are
+    flat = points.contiguous().view(-1)
+    total = flat.numel()
+    for step in (1, w):
+        span = (stride - 1) * step
+        out = torch.empty_like(flat)
+        combine(flat[:total - span], flat[step:total - span + step],
+                out=out[:total - span])
+        for i in range(2, stride):
+            combine(out[:total - span], flat[i * step:total - span + i * step],
+                    out=out[:total - span])
+        flat = out
+    cells = flat.view(num, h, w)[:, ::stride, ::stride].permute(1, 2, 0)
+    if cells.dtype == torch.bool:
+        cells = cells.view(torch.uint8)
+    # one strided copy: cell-major layout and dtype conversion together
+    return torch.empty(
+        hc, wc, num, dtype=dtype, device=points.device).copy_(cells)
 
 
 def _as_float(masks: Tensor, dtype=torch.float32) -> Tensor:
@@ -262,48 +274,61 @@ def _as_float(masks: Tensor, dtype=torch.float32) -> Tensor:
     return masks.to(dtype)
 
 
-def _squared_edt_hwm(points: Tensor) -> Tensor:
-    """Exact squared EDT of a float 0 / 1 set in ``[H, W, M]`` layout.
+def _edt_dtype(h: int, w: int) -> torch.dtype:
+    """Arithmetic type of :func:`_squared_edt_hwm` on an ``h x w`` grid:
+    int16 where its intermediate values (at most ``(h + 2 w - 1)^2 +
+    (h - 1)^2``) fit (then the scans and min-plus steps move half the
+    bytes of float32 and run about twice as fast on CPU; exact either
+    way, all values are integers), else float32."""
+    bound = (h + 2 * w - 1)**2 + (h - 1)**2
+    return torch.int16 if bound < 2**15 else torch.float32
 
-    Empty sets give values ``>= (H + W)^2``. In this layout every slice
-    below is a run of contiguous blocks: in-place prefix max / min scans
-    over columns (dim 1) find the nearest set column on each side, then
-    one in-place min-plus step per row offset (dim 0), with one reused
+
+def _squared_edt_hwm(points: Tensor) -> Tensor:
+    """Exact squared EDT of a 0 / 1 set in ``[H, W, M]`` layout.
+
+    Works in ``points.dtype`` (float, or an integer type that holds the
+    values, see :func:`_edt_dtype`). Empty sets give values ``>= (H +
+    W)^2``. In this layout every slice below is a run of contiguous
+    blocks. One prefix max scan over columns (dim 1), in place, finds the
+    nearest set column on the left and, on a mirrored copy, on the right;
+    then one min-plus step per row offset (dim 0), with one reused
     buffer, combines the rows.
     """
-    h, w, _ = points.shape
-    far = float(h + w)  # beyond any in-grid distance, exact in float32
-    cols = torch.arange(
-        w, device=points.device, dtype=torch.float32)[:, None]
-    # nearest set column <= x / >= x (cols where set, else out of range);
-    # every step is in place: fresh CPU buffers cost more than the
-    # arithmetic (page faults)
-    left = torch.mul(points, cols + far).sub_(far)
-    right = torch.mul(points, cols - (w - 1 + far)).add_(w - 1 + far)
+    h, w, num = points.shape
+    far = h + w  # beyond any in-grid distance
+    cols = torch.arange(w, device=points.device, dtype=points.dtype)
+    # [H, W, 2, M]: the set, and the set mirrored along W; nearest set
+    # column <= x: the running max of (x where set, else -far)
+    nearest = torch.stack((points, points.flip(1)), dim=2)
+    nearest.mul_((cols + far)[:, None, None]).sub_(far)
+    steps = nearest.unbind(1)
     for x in range(1, w):
-        torch.maximum(left[:, x], left[:, x - 1], out=left[:, x])
-        torch.minimum(right[:, w - 1 - x], right[:, w - x],
-                      out=right[:, w - 1 - x])
-    row_sq = torch.sub(cols, left, out=left)
-    torch.minimum(row_sq, right.sub_(cols), out=row_sq).square_()
+        torch.maximum(steps[x], steps[x - 1], out=steps[x])
+    # column distance on each side (>= far where the row has no set cell)
+    dist = torch.sub(cols[:, None, None], nearest, out=nearest)
+    row_sq = torch.minimum(dist[:, :, 0], dist[:, :, 1].flip(1))
+    row_sq.mul_(row_sq)  # square_ is a slow integer pow
     # out(r) = min_s row_sq(s) + (r - s)^2 over rows s (dim 0)
-    dist_sq = right.copy_(row_sq)
-    buf = torch.empty_like(row_sq)  # row_sq + gap
+    dist_sq = row_sq.clone()
+    tmp = torch.empty_like(row_sq)  # row_sq + gap
     for off in range(1, h):
-        gap = float(off * off)
-        tmp = buf[:h - off]
-        torch.add(row_sq[:h - off], gap, out=tmp)
-        torch.minimum(dist_sq[off:], tmp, out=dist_sq[off:])
-        torch.add(row_sq[off:], gap, out=tmp)
-        torch.minimum(dist_sq[:h - off], tmp, out=dist_sq[:h - off])
+        torch.add(row_sq, off * off, out=tmp)
+        torch.minimum(dist_sq[off:], tmp[:h - off], out=dist_sq[off:])
+        torch.minimum(dist_sq[:h - off], tmp[off:], out=dist_sq[:h - off])
     return dist_sq
 
 
 def _coarse_squared_edt(points: Tensor, stride: int) -> Tensor:
     """Squared EDT (pixels^2) of bool ``Tensor[N, H, W]`` on the grid
-    coarsened by ``stride``: ``Tensor[N, ceil(H / s), ceil(W / s)]``."""
-    dist_sq = _squared_edt_hwm(_coarsen(points, stride))
-    return dist_sq.permute(2, 0, 1).contiguous() * stride**2
+    coarsened by ``stride``: float32 ``Tensor[N, ceil(H / s), ceil(W /
+    s)]``."""
+    _, h, w = points.shape
+    cells = _coarsen(points, stride,
+                     _edt_dtype(-(-h // stride), -(-w // stride)))
+    dist_sq = _squared_edt_hwm(cells).permute(2, 0, 1)
+    return dist_sq.to(torch.float32,
+                      memory_format=torch.contiguous_format).mul_(stride**2)
 
 
 def _upsample(coarse: Tensor, stride: int, h: int, w: int) -> Tensor:
@@ -388,32 +413,89 @@ def distance_weighted_error(probs: Tensor,
             2 * num, h, w, dtype=torch.bool, device=probs.device)
         torch.gt(targets, 0.5, out=masks[:num])
         torch.ge(probs, 0.5, out=masks[num:])
-        contours = torch.gt(masks, _erode_flat(masks, kernel_size // 2))
-        # squared distances (coarse cells^2) -> (d / D)^2, capped at 1
-        weight = _squared_edt_hwm(_coarsen(contours, dist_stride)).mul_(
-            dist_stride**2 / mask_diagonal(h, w)**2).clamp_max_(1.)
-        if alpha != 2:
-            weight = weight.pow_(alpha / 2)
-        # (d_g / D)^alpha + (d_p / D)^alpha per cell: [N, hc, wc]
-        weight = (weight[..., :num] + weight[..., num:]).permute(
-            2, 0, 1).contiguous().to(probs.dtype)
-        weight = _upsample_columns(weight, dist_stride, w)
+        weight = _edge_weight_rows(masks, alpha, kernel_size, dist_stride,
+                                   probs.dtype).permute(1, 0, 2)
         gt_bin = _as_float(masks[:num], probs.dtype)
     return _WeightedSquaredError.apply(probs, gt_bin, weight,
                                        dist_stride) / (2 * h * w)
 
 
-def _upsample_columns(coarse: Tensor, stride: int, w: int) -> Tensor:
-    """Nearest upsampling of ``Tensor[N, hc, wc]`` along the last dimension
-    to ``Tensor[N, hc, w]``, as one matrix product with a 0 / 1 matrix
-    (exact; much faster on CPU than an interleaving strided copy)."""
-    if stride == 1:
-        return coarse
-    num, hc, wc = coarse.shape
-    idx = torch.arange(w, device=coarse.device)
-    cells = coarse.new_zeros(wc, w)
-    cells[idx // stride, idx] = 1.
-    return torch.mm(coarse.view(num * hc, wc), cells).view(num, hc, w)
+def _edge_weight_rows(masks: Tensor,
+                      alpha: float,
+                      kernel_size: int,
+                      stride: int,
+                      dtype: torch.dtype,
+                      scale: float = 1.) -> Tensor:
+    """Weights ``(d_g / D)^alpha + (d_p / D)^alpha`` of the edge term.
+
+    Args:
+        masks (Tensor): bool ``Tensor[2 N, H, W]``: the binary targets,
+            then the thresholded predictions.
+        alpha (float): Distance exponent.
+        kernel_size (int): Contour erosion window.
+        stride (int): Grid coarsening of the distance maps.
+        dtype (torch.dtype): Output dtype.
+        scale (float): Factor applied to the weights. Defaults to 1.
+
+    Returns:
+        Tensor: ``Tensor[ceil(H / stride), N, W]``, one row per ``stride``
+        pixel rows (nearest upsampling along W done, along H left to the
+        caller). No gradient.
+    """
+    num, h, w = masks.shape
+    num //= 2
+    hc, wc = -(-h // stride), -(-w // stride)
+    contours = torch.gt(masks, _erode_flat(masks, kernel_size // 2))
+    dist_sq = _squared_edt_hwm(
+        _coarsen(contours, stride, _edt_dtype(hc, wc)))
+    # squared distances (coarse cells^2) -> (d / D)^2, capped at 1
+    weight = dist_sq.to(torch.float32).mul_(
+        stride**2 / mask_diagonal(h, w)**2).clamp_max_(1.)
+    if alpha != 2:
+        weight = weight.pow_(alpha / 2)
+    # (d_g / D)^alpha + (d_p / D)^alpha per cell: [hc, wc, N]
+    weight = torch.add(weight[..., :num], weight[..., num:]).to(dtype)
+    if scale != 1:
+        weight.mul_(scale)
+    # upsampling along W and the move of N before W in one product with
+    # a 0 / 1 matrix: exact, and much faster on CPU than a strided copy
+    return torch.matmul(
+        weight.transpose(1, 2),
+        _upsampling_matrix(w, stride, weight.dtype, weight.device))
+
+
+@functools.lru_cache(maxsize=32)
+def _upsampling_matrix(size: int, stride: int, dtype: torch.dtype,
+                       device: torch.device) -> Tensor:
+    """0 / 1 ``Tensor[ceil(size / stride), size]``: ``coarse @ matrix``
+    repeats each coarse column ``stride`` times (nearest upsampling). A
+    shared constant, never written to."""
+    idx = torch.arange(size, device=device)
+    matrix = torch.zeros(-(-size // stride), size, dtype=dtype, device=device)
+    matrix[idx // stride, idx] = 1
+    return matrix
+
+
+def _mul_row_weights(values: Tensor, weight: Tensor, stride: int) -> Tensor:
+    """``values * weight`` with one weight row per ``stride`` rows.
+
+    Args:
+        values (Tensor): ``Tensor[N, H, W]``, contiguous.
+        weight (Tensor): ``Tensor[N, ceil(H / stride), W]`` (any strides).
+        stride (int): Rows per weight row.
+
+    Returns:
+        Tensor: ``Tensor[N, H, W]``, contiguous.
+    """
+    num, h, w = values.shape
+    out = torch.empty_like(values)
+    # one product per row of a cell: faster on CPU than a broadcast over
+    # a size-`stride` dimension
+    for i in range(stride):
+        rows = -(-(h - i) // stride)
+        torch.mul(values[:, i::stride], weight[:, :rows],
+                  out=out[:, i::stride])
+    return out
 
 
 class _WeightedSquaredError(torch.autograd.Function):
@@ -430,16 +512,8 @@ class _WeightedSquaredError(torch.autograd.Function):
     @staticmethod
     def forward(ctx, probs: Tensor, target: Tensor, weight: Tensor,
                 stride: int) -> Tensor:
-        num, h, w = probs.shape
-        hc = weight.size(1)
         diff = torch.sub(probs, target, out=target)
-        if hc * stride == h:  # rows broadcast, no upsampled copy
-            weighted = torch.mul(
-                diff.view(num, hc, stride, w), weight[:, :, None])
-        else:
-            weight = weight[:, :, None].expand(num, hc, stride, w)
-            weighted = weight.reshape(num, hc * stride, w)[:, :h] * diff
-        weighted = weighted.view(num, h, w)
+        weighted = _mul_row_weights(diff, weight, stride)
         ctx.save_for_backward(weighted)
         return diff.mul_(weighted).flatten(1).sum(1)
 
