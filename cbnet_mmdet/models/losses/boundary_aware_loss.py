@@ -15,12 +15,11 @@ from typing import Optional
 
 import torch
 import torch.nn as nn
-import torch.nn.functional as F
 from mmdet.models.losses.utils import weight_reduce_loss
 from mmdet.registry import MODELS
 from torch import Tensor
 
-from .boundary_ops import dice_coefficient, distance_weighted_error
+from .boundary_ops import boundary_loss
 
 
 @MODELS.register_module()
@@ -39,7 +38,9 @@ class CBNetBoundaryAwareLoss(nn.Module):
     grid coarsened by ``dist_stride``) and ``D`` the RoI mask diagonal;
     every term lies in ``[0, 1]`` except the BCE. The instance losses are
     reduced with MMDet's ``weight_reduce_loss`` and multiplied by
-    ``loss_weight``. All instances are processed at once.
+    ``loss_weight``. All instances are processed at once, by
+    :func:`.boundary_ops.boundary_loss` (one autograd function, forward
+    and backward fused).
 
     The call signature matches ``CrossEntropyLoss(use_mask=True)``, so it is
     a drop-in ``loss_mask`` for ``FCNMaskHead`` and its subclasses. With
@@ -119,7 +120,11 @@ class CBNetBoundaryAwareLoss(nn.Module):
             got = None if label is None else tuple(label.shape)
             raise ValueError(f'label must be Tensor[N] = ({num},) class '
                              f'indices for a {channels}-class pred, got {got}')
-        return pred[torch.arange(num, device=pred.device), label.long()]
+        # rows of the flattened [N * C, H, W] logits: a contiguous copy
+        # (cheaper than advanced indexing, forward and backward)
+        rows = torch.arange(
+            0, num * channels, channels, device=pred.device) + label.long()
+        return pred.flatten(0, 1).index_select(0, rows)
 
     def instance_losses(self, logits: Tensor, target: Tensor) -> Tensor:
         """Unweighted ``L_bound`` of each instance.
@@ -131,22 +136,16 @@ class CBNetBoundaryAwareLoss(nn.Module):
         Returns:
             Tensor: ``Tensor[N]``.
         """
-        target = target.to(logits.dtype)
-        bce = F.binary_cross_entropy_with_logits(
-            logits, target, reduction='none').flatten(1).mean(1)
-        shape = bce
-        probs = logits.sigmoid()
-        if self.use_shape:
-            shape = shape + 1 - dice_coefficient(probs, target)
-        loss = self.lambda_shape * shape
-        if self.use_edge:
-            loss = loss + self.lambda_edge * distance_weighted_error(
-                probs,
-                target,
-                alpha=self.alpha,
-                kernel_size=self.edge_kernel,
-                dist_stride=self.dist_stride)
-        return loss
+        return boundary_loss(
+            logits,
+            target,
+            lambda_shape=self.lambda_shape,
+            use_shape=self.use_shape,
+            lambda_edge=self.lambda_edge,
+            use_edge=self.use_edge,
+            alpha=self.alpha,
+            kernel_size=self.edge_kernel,
+            dist_stride=self.dist_stride)
 
     def forward(self,
                 pred: Tensor,
