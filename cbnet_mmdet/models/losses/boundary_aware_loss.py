@@ -11,7 +11,7 @@ averaged over the instances of the batch:
   distance-transform Hausdorff loss of Karimi & Salcudean (2019); the exact
   formula and the reasoning are in :mod:`.boundary_ops`.
 """
-from typing import Optional
+from typing import Optional, Tuple
 
 import torch
 import torch.nn as nn
@@ -101,11 +101,16 @@ class CBNetBoundaryAwareLoss(nn.Module):
         self.loss_weight = loss_weight
 
     @staticmethod
-    def _select_class(pred: Tensor, target: Tensor, label: Tensor) -> Tensor:
-        """Check shapes and take each RoI's class channel.
+    def _select_class(pred: Tensor, target: Tensor,
+                      label: Tensor) -> Tuple[Tensor, Optional[Tensor]]:
+        """Check shapes and locate each RoI's class channel.
 
         Returns:
-            Tensor: Logits of the labelled class, ``Tensor[N, H, W]``.
+            tuple[Tensor, Tensor | None]: ``Tensor[N, H, W]`` logits of the
+            labelled class, and None; or (``C > 1``) the ``Tensor[N * C,
+            H, W]`` logits and the row of each RoI's class, which
+            :func:`.boundary_ops.boundary_loss` selects itself (a
+            contiguous copy, and its gradient scattered directly).
         """
         if pred.dim() != 4:
             raise ValueError('pred must be Tensor[N, C, H, W] mask logits, '
@@ -115,23 +120,26 @@ class CBNetBoundaryAwareLoss(nn.Module):
             raise ValueError(f'target must be Tensor[N, H, W] = {(num, h, w)} '
                              f'to match pred, got {tuple(target.shape)}')
         if channels == 1:  # class-agnostic masks
-            return pred[:, 0]
+            return pred[:, 0], None
         if label is None or tuple(label.shape) != (num, ):
             got = None if label is None else tuple(label.shape)
             raise ValueError(f'label must be Tensor[N] = ({num},) class '
                              f'indices for a {channels}-class pred, got {got}')
-        # rows of the flattened [N * C, H, W] logits: a contiguous copy
-        # (cheaper than advanced indexing, forward and backward)
         rows = torch.arange(
             0, num * channels, channels, device=pred.device) + label.long()
-        return pred.flatten(0, 1).index_select(0, rows)
+        return pred.flatten(0, 1), rows
 
-    def instance_losses(self, logits: Tensor, target: Tensor) -> Tensor:
+    def instance_losses(self,
+                        logits: Tensor,
+                        target: Tensor,
+                        index: Optional[Tensor] = None) -> Tensor:
         """Unweighted ``L_bound`` of each instance.
 
         Args:
-            logits (Tensor): Mask logits, ``Tensor[N, H, W]``.
+            logits (Tensor): Mask logits, ``Tensor[N, H, W]``, or the rows
+                ``index`` of ``logits`` are.
             target (Tensor): Targets in ``[0, 1]``, ``Tensor[N, H, W]``.
+            index (Tensor, optional): ``Tensor[N]`` rows of ``logits``.
 
         Returns:
             Tensor: ``Tensor[N]``.
@@ -139,6 +147,7 @@ class CBNetBoundaryAwareLoss(nn.Module):
         return boundary_loss(
             logits,
             target,
+            index=index,
             lambda_shape=self.lambda_shape,
             use_shape=self.use_shape,
             lambda_edge=self.lambda_edge,
@@ -175,15 +184,15 @@ class CBNetBoundaryAwareLoss(nn.Module):
             raise ValueError('reduction_override must be None, "none", '
                              f'"mean" or "sum", got {reduction_override!r}')
         reduction = reduction_override or self.reduction
-        logits = self._select_class(pred, target, label)
-        if weight is not None and tuple(weight.shape) != (len(logits), ):
-            raise ValueError(f'weight must be Tensor[N] = ({len(logits)},), '
+        logits, index = self._select_class(pred, target, label)
+        if weight is not None and tuple(weight.shape) != (len(target), ):
+            raise ValueError(f'weight must be Tensor[N] = ({len(target)},), '
                              f'got {tuple(weight.shape)}')
-        if len(logits) == 0 and reduction != 'none':
+        if len(target) == 0 and reduction != 'none':
             # no positive RoI: a zero that keeps the graph connected
             return pred.sum() * 0.
         loss = weight_reduce_loss(
-            self.instance_losses(logits, target),
+            self.instance_losses(logits, target, index),
             weight=None if weight is None else weight.to(logits.dtype),
             reduction=reduction,
             avg_factor=avg_factor)

@@ -311,13 +311,14 @@ def _squared_edt_hwm(points: Tensor) -> Tensor:
     dist = torch.sub(cols[:, None, None], nearest, out=nearest)
     row_sq = torch.minimum(dist[:, :, 0], dist[:, :, 1].flip(1))
     row_sq.mul_(row_sq)  # square_ is a slow integer pow
-    # out(r) = min_s row_sq(s) + (r - s)^2 over rows s (dim 0)
+    # out(r) = min_s row_sq(s) + (r - s)^2 over rows s (dim 0); row_sq
+    # itself becomes row_sq + off^2 (two buffers, not three: the working
+    # set matters more than the operation count)
     dist_sq = row_sq.clone()
-    tmp = torch.empty_like(row_sq)  # row_sq + gap
     for off in range(1, h):
-        torch.add(row_sq, off * off, out=tmp)
-        torch.minimum(dist_sq[off:], tmp[:h - off], out=dist_sq[off:])
-        torch.minimum(dist_sq[:h - off], tmp[off:], out=dist_sq[:h - off])
+        row_sq.add_(2 * off - 1)
+        torch.minimum(dist_sq[off:], row_sq[:h - off], out=dist_sq[off:])
+        torch.minimum(dist_sq[:h - off], row_sq[off:], out=dist_sq[:h - off])
     return dist_sq
 
 
@@ -478,19 +479,24 @@ def _upsampling_matrix(size: int, stride: int, dtype: torch.dtype,
     return matrix
 
 
-def _mul_row_weights(values: Tensor, weight: Tensor, stride: int) -> Tensor:
+def _mul_row_weights(values: Tensor,
+                     weight: Tensor,
+                     stride: int,
+                     out: Optional[Tensor] = None) -> Tensor:
     """``values * weight`` with one weight row per ``stride`` rows.
 
     Args:
         values (Tensor): ``Tensor[N, H, W]``, contiguous.
         weight (Tensor): ``Tensor[N, ceil(H / stride), W]`` (any strides).
         stride (int): Rows per weight row.
+        out (Tensor, optional): Contiguous ``Tensor[N, H, W]`` to write to.
 
     Returns:
         Tensor: ``Tensor[N, H, W]``, contiguous.
     """
     num, h, w = values.shape
-    out = torch.empty_like(values)
+    if out is None:
+        out = torch.empty_like(values)
     # one product per row of a cell: faster on CPU than a broadcast over
     # a size-`stride` dimension
     for i in range(stride):
@@ -536,7 +542,8 @@ def boundary_loss(logits: Tensor,
                   use_edge: bool = True,
                   alpha: float = 2.0,
                   kernel_size: int = 3,
-                  dist_stride: int = 1) -> Tensor:
+                  dist_stride: int = 1,
+                  index: Optional[Tensor] = None) -> Tensor:
     """Per-instance boundary-aware loss, forward and backward fused.
 
     ``lambda_shape * (BCE + use_shape * (1 - DSC)) + use_edge *
@@ -553,8 +560,9 @@ def boundary_loss(logits: Tensor,
     arithmetic on it) and the distance transforms in int16.
 
     Args:
-        logits (Tensor): Mask logits, ``Tensor[N, H, W]``; float16 /
-            bfloat16 are computed in float32.
+        logits (Tensor): Mask logits, ``Tensor[N, H, W]``, or
+            ``Tensor[M, H, W]`` with ``index``; float16 / bfloat16 are
+            computed in float32.
         targets (Tensor): Targets in ``[0, 1]``, ``Tensor[N, H, W]`` (the
             edge term uses ``targets > 0.5``).
         lambda_shape (float): Weight of BCE + Dice. Defaults to 1.0.
@@ -565,11 +573,29 @@ def boundary_loss(logits: Tensor,
         kernel_size (int): Contour erosion window. Defaults to 3.
         dist_stride (int): Grid coarsening of the distance maps (see
             :func:`squared_distance_to_set`). Defaults to 1.
+        index (Tensor, optional): ``Tensor[N]`` rows of ``logits`` to use,
+            i.e. the loss of ``logits.index_select(0, index)`` (e.g. each
+            RoI's class channel of ``Tensor[N * C, H, W]`` logits), with
+            the gradient scattered into ``logits``'s shape directly.
 
     Returns:
         Tensor: ``Tensor[N]``. Not twice differentiable.
     """
-    _check_pair('logits', logits, 'targets', targets)
+    if index is not None and (logits.dtype in (torch.float16,
+                                               torch.bfloat16)
+                              or not logits.requires_grad):
+        logits, index = logits.index_select(0, index), None
+    if index is None:
+        _check_pair('logits', logits, 'targets', targets)
+    else:
+        _check_masks('logits', logits)
+        _check_masks('targets', targets)
+        if (tuple(index.shape) != (len(targets), )
+                or logits.shape[1:] != targets.shape[1:]):
+            raise ValueError(
+                f'index {tuple(index.shape)} must select one logits row '
+                f'{tuple(logits.shape[1:])} per target '
+                f'{tuple(targets.shape)}')
     if alpha <= 0:
         raise ValueError(f'alpha must be > 0, got {alpha}')
     _check_kernel(kernel_size)
@@ -577,14 +603,16 @@ def boundary_loss(logits: Tensor,
     if logits.dtype in (torch.float16, torch.bfloat16):
         logits = logits.float()  # e.g. under autocast: sums, products
     targets = targets.to(logits.dtype)
-    if len(logits) == 0:
+    if len(targets) == 0:
+        if index is not None:
+            logits = logits.index_select(0, index)
         return logits.sum((1, 2)) + targets.sum((1, 2))
     if not torch.is_grad_enabled():
         # the forward pass computes the gradient for inputs that require
         # one, which no_grad mode does not tell a Function
         logits, targets = logits.detach(), targets.detach()
     edge = (alpha, kernel_size, int(dist_stride)) if use_edge else None
-    return _BoundaryLoss.apply(logits, targets, float(lambda_shape),
+    return _BoundaryLoss.apply(logits, index, targets, float(lambda_shape),
                                bool(use_shape), float(lambda_edge), edge)
 
 
@@ -619,18 +647,20 @@ class _BoundaryLoss(torch.autograd.Function):
     """
 
     @staticmethod
-    def forward(ctx, logits: Tensor, targets: Tensor, lambda_shape: float,
-                use_shape: bool, lambda_edge: float, edge) -> Tensor:
+    def forward(ctx, logits: Tensor, index: Optional[Tensor],
+                targets: Tensor, lambda_shape: float, use_shape: bool,
+                lambda_edge: float, edge) -> Tensor:
+        ctx.index, ctx.logits_shape = index, logits.shape
+        if index is not None:
+            logits = logits.index_select(0, index)
         num, h, w = logits.shape
         hw = h * w
         x = logits.reshape(num, hw)
         g = targets.reshape(num, hw)
         p = torch.sigmoid(x)
-        # scratch rows: the buffer of the sums below, then the binary
-        # target and thresholded prediction of the edge term
-        scratch = torch.empty(
-            2 * num if edge else num, hw, dtype=p.dtype, device=p.device)
-        buf = scratch[:num]
+        # the buffer of the sums below (every full-size buffer counts:
+        # the working set is larger than the CPU caches)
+        buf = torch.empty_like(p)
         # BCE: sum(max(x, 0) - x g) - sum(log(max(p, 1 - p)))
         bce = torch.clamp_min(x, 0, out=buf).addcmul_(x, g, value=-1).sum(1)
         torch.maximum(torch.sub(p.new_ones(()), p, out=buf), p, out=buf)
@@ -661,18 +691,22 @@ class _BoundaryLoss(torch.autograd.Function):
         if edge is not None:
             alpha, kernel_size, stride = edge
             # binary target and thresholded prediction: comparisons into
-            # float and one float -> bool copy are 4x faster on CPU than
-            # comparisons into bool
+            # float and float -> bool copies are 4x faster on CPU than
+            # comparisons into bool; grad_x is a buffer until d L_edge / dp
+            masks = torch.empty(
+                2 * num, h, w, dtype=torch.bool, device=p.device)
+            grad_x = torch.ge(p, 0.5, out=torch.empty_like(p))
+            masks[num:].view(num, hw).copy_(grad_x)
             target_bin = torch.gt(g, 0.5, out=buf)
-            torch.ge(p, 0.5, out=scratch[num:])
-            masks = scratch.view(2 * num, h, w).to(torch.bool)
+            masks[:num].view(num, hw).copy_(target_bin)
             # weights scaled by le / HW: the product with the error is
             # then d L_edge / dp, and L_edge half its sum against the error
             weight = _edge_weight_rows(masks, alpha, kernel_size, stride,
                                        p.dtype, lambda_edge / hw)
             diff = torch.sub(p, target_bin, out=target_bin).view(num, h, w)
-            grad_x = _mul_row_weights(diff, weight.permute(1, 0, 2),
-                                      stride).view(num, hw)
+            grad_x = _mul_row_weights(
+                diff, weight.permute(1, 0, 2), stride,
+                out=grad_x.view(num, h, w)).view(num, hw)
             loss += diff.view(num, hw).mul_(grad_x).sum(1).mul_(0.5)
         if ctx.needs_input_grad[0]:
             # d L / dp without the BCE, then d / dx and the BCE's p - g
@@ -692,8 +726,10 @@ class _BoundaryLoss(torch.autograd.Function):
                     grad_x, p, grad_input=grad_x)
                 grad_x.add_(p, alpha=bce_coef).sub_(g, alpha=bce_coef)
             grad_x = grad_x.view(num, h, w)
+        else:
+            grad_x = None
         grad_g = None
-        if ctx.needs_input_grad[1]:
+        if ctx.needs_input_grad[2]:
             grad_g = torch.mul(x, -lambda_shape / hw)
             if use_shape:
                 grad_g.addcmul_(p, (-lambda_shape * coef_g)[:, None])
@@ -707,6 +743,17 @@ class _BoundaryLoss(torch.autograd.Function):
     def backward(ctx, grad: Tensor):
         grad_x, grad_g = ctx.saved_tensors
         col = grad[:, None, None]
-        return (None if grad_x is None else grad_x * col,
-                None if grad_g is None else grad_g * col, None, None, None,
-                None)
+        if grad_x is not None and ctx.index is not None:
+            # the gradient of index_select, without an intermediate product
+            # where every instance has the same incoming gradient (mean
+            # reduction; checked on CPU only, it would synchronise a GPU)
+            out = grad_x.new_zeros(ctx.logits_shape)
+            if grad.device.type == 'cpu' and grad.min() == grad.max():
+                grad_x = out.index_add_(
+                    0, ctx.index, grad_x, alpha=grad[0].item())
+            else:
+                grad_x = out.index_add_(0, ctx.index, grad_x * col)
+        elif grad_x is not None:
+            grad_x = grad_x * col
+        return (grad_x, None, None if grad_g is None else grad_g * col, None,
+                None, None, None)

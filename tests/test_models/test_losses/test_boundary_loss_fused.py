@@ -166,26 +166,49 @@ def test_empty_and_dtypes():
         rtol=1e-5, atol=1e-6)
 
 
-def test_module_gradient_wrt_pred():
+@pytest.mark.parametrize('weighted', [False, True])
+def test_module_gradient_wrt_pred(weighted):
     """CBNetBoundaryAwareLoss (class selection, reduction, loss_weight):
-    gradient on the [N, C, H, W] logits equals the plain composition's."""
+    gradient on the [N, C, H, W] logits equals the plain composition's
+    (equal incoming gradients take a shortcut, so both kinds)."""
     logits, targets = blob_inputs(32, 28, seed=5)
     gen = torch.Generator().manual_seed(0)
     label = torch.randint(0, 4, (32, ), generator=gen)
     pred = torch.randn(32, 4, 28, 28, generator=gen)
     pred[torch.arange(32), label] = logits
-    weight = torch.rand(32, generator=gen)
+    weight = torch.rand(32, generator=gen) if weighted else None
     loss_fn = MODELS.build(dict(type='CBNetBoundaryAwareLoss',
                                 loss_weight=2.))
     pred = pred.requires_grad_()
     loss = loss_fn(pred, targets, label, weight=weight, avg_factor=7.)
     grad, = torch.autograd.grad(loss, pred)
     ref_pred = pred.detach().clone().requires_grad_()
-    ref = 2. * (plain_losses(ref_pred[torch.arange(32), label], targets,
-                             dist_stride=2) * weight).sum() / 7.
+    ref = plain_losses(ref_pred[torch.arange(32), label], targets,
+                       dist_stride=2)
+    ref = 2. * (ref if weight is None else ref * weight).sum() / 7.
     ref_grad, = torch.autograd.grad(ref, ref_pred)
     torch.testing.assert_close(loss, ref)
     torch.testing.assert_close(grad, ref_grad, rtol=1e-4, atol=1e-9)
+
+
+def test_index_and_soft_target_gradients():
+    """``index`` selects rows of the logits; target gradients still flow."""
+    gen = torch.Generator().manual_seed(2)
+    logits = torch.randn(12, 10, 10, generator=gen, dtype=torch.float64)
+    index = torch.tensor([3, 0, 7, 11])
+    targets = torch.rand(4, 10, 10, generator=gen, dtype=torch.float64)
+    logits.requires_grad_()
+    targets.requires_grad_()
+    grad_out = torch.rand(4, generator=gen, dtype=torch.float64)
+    out = boundary_loss(logits, targets, index=index, dist_stride=2)
+    grads_ = torch.autograd.grad(out, (logits, targets), grad_out)
+    ref = plain_losses(logits[index], targets, dist_stride=2)
+    ref_grads = torch.autograd.grad(ref, (logits, targets), grad_out)
+    torch.testing.assert_close(out, ref)
+    for got, want in zip(grads_, ref_grads):
+        torch.testing.assert_close(got, want)
+    with pytest.raises(ValueError, match='index'):
+        boundary_loss(logits, targets, index=index[:3])
 
 
 def test_no_grad_mode():
