@@ -9,9 +9,10 @@ an ``FCNMaskHead`` produces them) one forward + backward of
   ``dist_stride=2``),
 * ``bound_exact``: the same with exact distance maps (``dist_stride=1``)
 
-is timed (median and best of ``--repeats`` runs, the losses interleaved so
-that load changes hit all of them alike), and the peak tensor memory of one
-forward + backward is measured (torch profiler memory events on CPU,
+is timed, forward alone and forward + backward (median and best of
+``--repeats`` runs, the losses interleaved so that load changes hit all of
+them alike), and the peak tensor memory of one forward + backward is
+measured (torch profiler memory events on CPU,
 ``torch.cuda.max_memory_allocated`` on GPU; inputs not counted).
 
 Usage::
@@ -70,10 +71,18 @@ def make_inputs(num_rois, args, seed=0):
             label.to(args.device))
 
 
-def step(loss_fn, pred, target, label):
-    """One forward + backward."""
+def step(loss_fn, pred, target, label, device='cpu'):
+    """One forward + backward; returns the seconds of the forward and of
+    the whole step."""
     pred.grad = None
-    loss_fn(pred, target, label).backward()
+    sync(device)
+    start = time.perf_counter()
+    loss = loss_fn(pred, target, label)
+    sync(device)
+    forward = time.perf_counter() - start
+    loss.backward()
+    sync(device)
+    return forward, time.perf_counter() - start
 
 
 def sync(device):
@@ -82,7 +91,8 @@ def sync(device):
 
 
 def time_losses(num_rois, args):
-    """Median and best seconds of one forward + backward, per loss.
+    """Median and best seconds of one forward + backward, and median of
+    the forward alone, per loss.
 
     The losses run interleaved, so that a change of machine load hits all
     of them alike; the best run is the least disturbed by other processes.
@@ -90,19 +100,20 @@ def time_losses(num_rois, args):
     inputs = make_inputs(num_rois, args)
     fns = {name: MODELS.build(cfg) for name, cfg in LOSSES.items()}
     times = {name: [] for name in fns}
+    forward = {name: [] for name in fns}
     for name, fn in fns.items():  # warm-up
-        step(fn, *inputs)
+        step(fn, *inputs, device=args.device)
     for _ in range(args.repeats):
         for name, fn in fns.items():
-            sync(args.device)
-            start = time.perf_counter()
-            step(fn, *inputs)
-            sync(args.device)
-            times[name].append(time.perf_counter() - start)
+            fwd, total = step(fn, *inputs, device=args.device)
+            forward[name].append(fwd)
+            times[name].append(total)
     return ({name: float(np.median(v))
              for name, v in times.items()},
             {name: float(np.min(v))
-             for name, v in times.items()})
+             for name, v in times.items()},
+            {name: float(np.median(v))
+             for name, v in forward.items()})
 
 
 def peak_memory(name, num_rois, args):
@@ -140,7 +151,7 @@ def main(argv=None):
         torch.set_num_threads(args.threads)
     rows = []
     for num_rois in args.rois:
-        times, best = time_losses(num_rois, args)
+        times, best, forward = time_losses(num_rois, args)
         mem = {name: peak_memory(name, num_rois, args) for name in LOSSES}
         rows.append(
             dict(
@@ -154,6 +165,12 @@ def main(argv=None):
                     k: times[k] / times['bce']
                     for k in times
                 },
+                forward_time_ms={k: v * 1e3
+                                 for k, v in forward.items()},
+                forward_time_ratio_vs_bce={
+                    k: forward[k] / forward['bce']
+                    for k in forward
+                },
                 best_time_ratio_vs_bce={
                     k: best[k] / best['bce']
                     for k in best
@@ -161,17 +178,19 @@ def main(argv=None):
     print(f'device: {args.device}, threads: {torch.get_num_threads()}, '
           f'{platform.processor() or platform.machine()}, '
           f'masks {args.size}x{args.size}, {args.num_classes} classes, '
-          f'median of {args.repeats}')
+          f'median of {args.repeats}; forward + backward ms (x BCE, '
+          'best-run x BCE), forward ms (x BCE), peak MiB')
     names = list(LOSSES)
-    print('| RoIs | ' + ' | '.join(f'{n} ms (x BCE, best-run x)'
-                                   for n in names) + ' | ' +
-          ' | '.join(f'{n} MiB' for n in names) + ' |')
-    print('|---' * (1 + 2 * len(names)) + '|')
+    print('| RoIs | ' + ' | '.join(names) + ' |')
+    print('|---' * (1 + len(names)) + '|')
     for r in rows:
         cells = [
             f"{r['time_ms'][n]:.2f} ({r['time_ratio_vs_bce'][n]:.2f}, "
-            f"{r['best_time_ratio_vs_bce'][n]:.2f})" for n in names
-        ] + [f"{r['peak_mem_mib'][n]:.1f}" for n in names]
+            f"{r['best_time_ratio_vs_bce'][n]:.2f}); "
+            f"fwd {r['forward_time_ms'][n]:.2f} "
+            f"({r['forward_time_ratio_vs_bce'][n]:.2f}); "
+            f"{r['peak_mem_mib'][n]:.1f} MiB" for n in names
+        ]
         print(f"| {r['rois']} | " + ' | '.join(cells) + ' |')
     result = dict(
         device=args.device,

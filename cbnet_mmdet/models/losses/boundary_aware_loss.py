@@ -11,16 +11,15 @@ averaged over the instances of the batch:
   distance-transform Hausdorff loss of Karimi & Salcudean (2019); the exact
   formula and the reasoning are in :mod:`.boundary_ops`.
 """
-from typing import Optional
+from typing import Optional, Tuple
 
 import torch
 import torch.nn as nn
-import torch.nn.functional as F
 from mmdet.models.losses.utils import weight_reduce_loss
 from mmdet.registry import MODELS
 from torch import Tensor
 
-from .boundary_ops import dice_coefficient, distance_weighted_error
+from .boundary_ops import boundary_loss
 
 
 @MODELS.register_module()
@@ -39,7 +38,9 @@ class CBNetBoundaryAwareLoss(nn.Module):
     grid coarsened by ``dist_stride``) and ``D`` the RoI mask diagonal;
     every term lies in ``[0, 1]`` except the BCE. The instance losses are
     reduced with MMDet's ``weight_reduce_loss`` and multiplied by
-    ``loss_weight``. All instances are processed at once.
+    ``loss_weight``. All instances are processed at once, by
+    :func:`.boundary_ops.boundary_loss` (one autograd function, forward
+    and backward fused).
 
     The call signature matches ``CrossEntropyLoss(use_mask=True)``, so it is
     a drop-in ``loss_mask`` for ``FCNMaskHead`` and its subclasses. With
@@ -100,11 +101,16 @@ class CBNetBoundaryAwareLoss(nn.Module):
         self.loss_weight = loss_weight
 
     @staticmethod
-    def _select_class(pred: Tensor, target: Tensor, label: Tensor) -> Tensor:
-        """Check shapes and take each RoI's class channel.
+    def _select_class(pred: Tensor, target: Tensor,
+                      label: Tensor) -> Tuple[Tensor, Optional[Tensor]]:
+        """Check shapes and locate each RoI's class channel.
 
         Returns:
-            Tensor: Logits of the labelled class, ``Tensor[N, H, W]``.
+            tuple[Tensor, Tensor | None]: ``Tensor[N, H, W]`` logits of the
+            labelled class, and None; or (``C > 1``) the ``Tensor[N * C,
+            H, W]`` logits and the row of each RoI's class, which
+            :func:`.boundary_ops.boundary_loss` selects itself (a
+            contiguous copy, and its gradient scattered directly).
         """
         if pred.dim() != 4:
             raise ValueError('pred must be Tensor[N, C, H, W] mask logits, '
@@ -114,39 +120,41 @@ class CBNetBoundaryAwareLoss(nn.Module):
             raise ValueError(f'target must be Tensor[N, H, W] = {(num, h, w)} '
                              f'to match pred, got {tuple(target.shape)}')
         if channels == 1:  # class-agnostic masks
-            return pred[:, 0]
+            return pred[:, 0], None
         if label is None or tuple(label.shape) != (num, ):
             got = None if label is None else tuple(label.shape)
             raise ValueError(f'label must be Tensor[N] = ({num},) class '
                              f'indices for a {channels}-class pred, got {got}')
-        return pred[torch.arange(num, device=pred.device), label.long()]
+        rows = torch.arange(
+            0, num * channels, channels, device=pred.device) + label.long()
+        return pred.flatten(0, 1), rows
 
-    def instance_losses(self, logits: Tensor, target: Tensor) -> Tensor:
+    def instance_losses(self,
+                        logits: Tensor,
+                        target: Tensor,
+                        index: Optional[Tensor] = None) -> Tensor:
         """Unweighted ``L_bound`` of each instance.
 
         Args:
-            logits (Tensor): Mask logits, ``Tensor[N, H, W]``.
+            logits (Tensor): Mask logits, ``Tensor[N, H, W]``, or the rows
+                ``index`` of ``logits`` are.
             target (Tensor): Targets in ``[0, 1]``, ``Tensor[N, H, W]``.
+            index (Tensor, optional): ``Tensor[N]`` rows of ``logits``.
 
         Returns:
             Tensor: ``Tensor[N]``.
         """
-        target = target.to(logits.dtype)
-        bce = F.binary_cross_entropy_with_logits(
-            logits, target, reduction='none').flatten(1).mean(1)
-        shape = bce
-        probs = logits.sigmoid()
-        if self.use_shape:
-            shape = shape + 1 - dice_coefficient(probs, target)
-        loss = self.lambda_shape * shape
-        if self.use_edge:
-            loss = loss + self.lambda_edge * distance_weighted_error(
-                probs,
-                target,
-                alpha=self.alpha,
-                kernel_size=self.edge_kernel,
-                dist_stride=self.dist_stride)
-        return loss
+        return boundary_loss(
+            logits,
+            target,
+            index=index,
+            lambda_shape=self.lambda_shape,
+            use_shape=self.use_shape,
+            lambda_edge=self.lambda_edge,
+            use_edge=self.use_edge,
+            alpha=self.alpha,
+            kernel_size=self.edge_kernel,
+            dist_stride=self.dist_stride)
 
     def forward(self,
                 pred: Tensor,
@@ -176,15 +184,15 @@ class CBNetBoundaryAwareLoss(nn.Module):
             raise ValueError('reduction_override must be None, "none", '
                              f'"mean" or "sum", got {reduction_override!r}')
         reduction = reduction_override or self.reduction
-        logits = self._select_class(pred, target, label)
-        if weight is not None and tuple(weight.shape) != (len(logits), ):
-            raise ValueError(f'weight must be Tensor[N] = ({len(logits)},), '
+        logits, index = self._select_class(pred, target, label)
+        if weight is not None and tuple(weight.shape) != (len(target), ):
+            raise ValueError(f'weight must be Tensor[N] = ({len(target)},), '
                              f'got {tuple(weight.shape)}')
-        if len(logits) == 0 and reduction != 'none':
+        if len(target) == 0 and reduction != 'none':
             # no positive RoI: a zero that keeps the graph connected
             return pred.sum() * 0.
         loss = weight_reduce_loss(
-            self.instance_losses(logits, target),
+            self.instance_losses(logits, target, index),
             weight=None if weight is None else weight.to(logits.dtype),
             reduction=reduction,
             avg_factor=avg_factor)
