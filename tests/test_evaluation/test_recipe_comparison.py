@@ -106,6 +106,19 @@ def test_summarize_mean_std_and_drop_against_numpy():
     assert '| B | - | - |' in md
 
 
+def test_a_box_only_recipe_shows_dashes_for_masks_not_zero():
+    runs = [fake_run('masks', 0, 0.3, 0.2),
+            fake_run('boxes', 0, 0.4, 0.3, key='coco/bbox_mAP')]
+    runs[0]['metrics']['clear']['coco/bbox_mAP'] = 0.35
+    runs[0]['metrics']['foggy beta=0.02']['coco/bbox_mAP'] = 0.25
+    summary = rc.summarize(runs, [0.02])
+    assert summary['columns'] == ['box AP', 'mask AP']
+    boxes = summary['summary']['boxes']['clear']
+    assert boxes['mask AP'] is None
+    assert boxes['box AP']['mean'] == pytest.approx(40.0)
+    assert '| boxes | 40.0 | - |' in rc.to_markdown(summary)
+
+
 def test_proposal_columns_are_picked_for_rpn_runs():
     runs = [fake_run('R', 0, 0.5, 0.4, key='coco/AR@1000')]
     for run in runs:
