@@ -280,3 +280,25 @@ def test_model_cfg_overrides_one_model_only(capsys):
         with pytest.raises(SystemExit):
             bench_script.parse_args(['--models', 'cbnet_mit-b0'] + bad)
         assert match in capsys.readouterr().err
+
+
+def test_results_are_written_after_every_phase(tmp_path):
+    """A run killed later (e.g. out of memory in a training step) keeps
+    what it measured: each phase checkpoints the results."""
+    sys.path.insert(0, osp.dirname(SCRIPT))
+    try:
+        import benchmark as bench_script
+    finally:
+        sys.path.pop(0)
+    args = bench_script.parse_args([
+        '--models', 'yolox_s', '--size', '64', '64', '--batch-sizes', '1',
+        '--repeats', '1', '--warmup', '0', '--no-flops', '--scale-models',
+        'yolox_s', '--scale-sizes', '32x32', '--scale-items', '--threads',
+        '1', '--out-dir', str(tmp_path)
+    ])
+    seen = []
+    bench_script.run(args, lambda res, sca: seen.append(
+        (sorted(res['yolox_s']), sorted(sca['sizes']))))
+    assert [s[1] for s in seen] == [[], [], ['yolox_s']]
+    assert 'inference' in seen[0][0] and 'train_step' not in seen[0][0]
+    assert 'train_step' in seen[1][0]

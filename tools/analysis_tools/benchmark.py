@@ -261,7 +261,10 @@ def _peak(values):
     return max(values) if values else None
 
 
-def run(args):
+def run(args, checkpoint=lambda results, scaling: None):
+    """Measure; ``checkpoint(results, scaling)`` after every phase, so a
+    run killed later (out of memory in a training step) keeps what it
+    measured."""
     bench = Bench(args)
     B, names, size = bench.B, list(bench.models), args.size
     results = {n: dict(config=osp.relpath(args.configs[n], ROOT))
@@ -288,6 +291,7 @@ def run(args):
                 peak_mib=_peak(meas[n]['peak_mib']),
                 times=meas[n]['times'])
         print(f'inference batch {bs} done', file=sys.stderr)
+        checkpoint(results, dict(sizes={}, items={}))
     if not args.no_train:
         # the timed training steps move the weights (lr 1e-8, but a random
         # model's proposal scores are near ties); the scaling study measures
@@ -309,6 +313,7 @@ def run(args):
             bench.models[n].load_state_dict(state)
         del initial
         print('training done', file=sys.stderr)
+        checkpoint(results, dict(sizes={}, items={}))
     scaling = dict(sizes={}, items={})
     for hw in args.scale_sizes:
         calls = {n: bench.predict_call(n, bench.batch(n, hw))
@@ -320,6 +325,7 @@ def run(args):
                 seconds=B.summarize(meas[n]['times'])['median'],
                 peak_mib=_peak(meas[n]['peak_mib'])))
         print(f'scaling size {hw} done', file=sys.stderr)
+        checkpoint(results, scaling)
     if not args.no_train:
         for k in args.scale_items:
             calls = {}
@@ -396,7 +402,9 @@ def markdown(meta, results, scaling):
         f'Input {h}x{w}, {meta["num_items"]} instances per image (training)'
         f', {meta["repeats"]} timed repeats after {meta["warmup"]} warm-up, '
         f'random weights; inference RoI heads on '
-        f'{PROPOSALS[meta.get("proposals", "model")]}.', '',
+        f'{PROPOSALS[meta.get("proposals", "model")]}.' +
+        (' PARTIAL: the run stopped before its end; the missing cells were '
+         'not measured.' if meta.get('partial') else ''), '',
         f'- command: `{meta["command"]}`',
         f'- date: {meta["date"]}, wall time {_f(meta.get("wall_s"), "{:.0f}")}'
         ' s',
@@ -510,27 +518,33 @@ def main(argv=None):
         torch.set_num_threads(args.threads)
     start, load_start = time.time(), load_average()
     date = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
-    results, scaling = run(args)
     omp = os.environ.get('OMP_NUM_THREADS')
-    meta = dict(
-        size=args.size, batch_sizes=args.batch_sizes, repeats=args.repeats,
-        proposals=args.proposals, train_batch_size=args.train_batch_size,
-        overrides=args.overrides,
-        warmup=args.warmup, num_items=args.num_items,
-        machine=machine(args), date=date, load_start=load_start,
-        load_end=load_average(),
-        command=(f'OMP_NUM_THREADS={omp} ' if omp else '') +
-        'python tools/analysis_tools/benchmark.py ' +
-        ' '.join(sys.argv[1:] if argv is None else argv),
-        wall_s=time.time() - start,
-        peak_memory=_peak_memory_method(args.device))
-    os.makedirs(args.out_dir, exist_ok=True)
-    text = markdown(meta, results, scaling)
-    with open(osp.join(args.out_dir, 'benchmark.json'), 'w') as f:
-        json.dump(dict(meta=meta, results=results, scaling=scaling), f,
-                  indent=2)
-    with open(osp.join(args.out_dir, 'benchmark.md'), 'w') as f:
-        f.write(text)
+
+    def record(results, scaling, partial):
+        meta = dict(
+            size=args.size, batch_sizes=args.batch_sizes,
+            repeats=args.repeats, proposals=args.proposals,
+            train_batch_size=args.train_batch_size,
+            overrides=args.overrides, warmup=args.warmup,
+            num_items=args.num_items, machine=machine(args), date=date,
+            load_start=load_start, load_end=load_average(),
+            command=(f'OMP_NUM_THREADS={omp} ' if omp else '') +
+            'python tools/analysis_tools/benchmark.py ' +
+            ' '.join(sys.argv[1:] if argv is None else argv),
+            wall_s=time.time() - start,
+            peak_memory=_peak_memory_method(args.device), partial=partial)
+        os.makedirs(args.out_dir, exist_ok=True)
+        text = markdown(meta, results, scaling)
+        with open(osp.join(args.out_dir, 'benchmark.json'), 'w') as f:
+            json.dump(dict(meta=meta, results=results, scaling=scaling), f,
+                      indent=2)
+        with open(osp.join(args.out_dir, 'benchmark.md'), 'w') as f:
+            f.write(text)
+        return meta, text
+
+    results, scaling = run(
+        args, lambda res, sca: record(res, sca, partial=True))
+    meta, text = record(results, scaling, partial=False)
     if scaling['sizes'] or scaling['items']:
         plot(scaling, osp.join(args.out_dir, 'scaling.png'))
     print(text)
