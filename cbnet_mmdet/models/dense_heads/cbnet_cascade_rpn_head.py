@@ -106,7 +106,7 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
             anchors (True) or over ``anchors / 200`` as MMDet's stage head
             does without a sampler. Defaults to True.
         deform_impl (str): Stage 2's deformable convolution: ``'gather'``
-            (:class:`CBNetDeformConv2d`, 3-4x faster on CPU) or ``'mmcv'``
+            (:class:`CBNetDeformConv2d`, 2-4x faster on CPU) or ``'mmcv'``
             (``mmcv.ops.DeformConv2d``); the same function and weights.
             Defaults to ``'gather'``.
         train_cfg (list[dict], optional): One training config per stage

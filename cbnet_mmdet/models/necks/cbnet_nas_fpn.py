@@ -67,10 +67,11 @@ class CBNetNASFPN(NASFPN):
             Defaults to None.
         upsample_mode (str): ``'nearest'`` or ``'bilinear'``: how merging
             cells enlarge a coarser input. Defaults to ``'nearest'``.
-        fine_path (str): ``'cells'`` (default, the paper's reading: the
-            cell graph spans the five finest levels) or ``'light'`` (the
-            graph starts one level coarser; the finest level is an FPN-style
-            lateral + top-down sum and one 3x3 convolution).
+        fine_path (str): ``'cells'`` (default; our first reading of the
+            paper: the cell graph spans the five finest levels) or
+            ``'light'`` (the graph starts one level coarser; the finest
+            level is an FPN-style lateral + top-down sum and one 3x3
+            convolution; the paper configs' setting).
         channels_last (bool, optional): Run the cells on ``channels_last``
             tensors (outputs are returned contiguous NCHW, as the RoI and
             deformable-convolution ops downstream expect). ``None``
