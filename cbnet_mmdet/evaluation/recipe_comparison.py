@@ -459,8 +459,9 @@ def plot(summary: dict, betas: Sequence[float], path: str,
         summary (dict): :func:`summarize` output.
         betas (Sequence[float]): Fog densities; clear is drawn at 0.
         path (str): Output image (PNG).
-        column (str, optional): Column to draw; default mask AP, else
-            the last column (AR@1000 for proposals).
+        column (str, optional): Column to draw; default mask AP when
+            every recipe reports it, else box AP (a box-only detector in
+            the set), else the last column (AR@1000 for proposals).
 
     Returns:
         str: ``path``.
@@ -470,7 +471,10 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     import matplotlib.pyplot as plt
 
     cols = summary['columns']
-    column = column or ('mask AP' if 'mask AP' in cols else cols[-1])
+    if column is None:
+        clear = [summary['summary'][r]['clear'] for r in summary['recipes']]
+        column = next((c for c in ('mask AP', 'box AP') if c in cols and
+                       all(e.get(c) is not None for e in clear)), cols[-1])
     xs = [0.0] + list(betas)
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     for recipe in summary['recipes']:

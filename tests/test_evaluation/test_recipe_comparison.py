@@ -119,6 +119,22 @@ def test_a_box_only_recipe_shows_dashes_for_masks_not_zero():
     assert '| boxes | 40.0 | - |' in rc.to_markdown(summary)
 
 
+def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
+    import matplotlib.axes
+    runs = [fake_run('masks', 0, 0.3, 0.2),
+            fake_run('boxes', 0, 0.4, 0.3, key='coco/bbox_mAP')]
+    runs[0]['metrics']['clear']['coco/bbox_mAP'] = 0.35
+    runs[0]['metrics']['foggy beta=0.02']['coco/bbox_mAP'] = 0.25
+    labels = []
+    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
+                        lambda self, text, **kw: labels.append(text))
+    rc.plot(rc.summarize(runs, [0.02]), [0.02], str(tmp_path / 'p.png'))
+    assert labels == ['box AP (%)']  # every recipe on the plot
+    labels.clear()
+    rc.plot(rc.summarize(runs[:1], [0.02]), [0.02], str(tmp_path / 'q.png'))
+    assert labels == ['mask AP (%)']
+
+
 def test_proposal_columns_are_picked_for_rpn_runs():
     runs = [fake_run('R', 0, 0.5, 0.4, key='coco/AR@1000')]
     for run in runs:
