@@ -5,9 +5,11 @@ For every model (configs below, random weights, nothing downloaded):
 parameters, GFLOPs (PyTorch's ``FlopCounterMode``: whole inference and
 backbone+neck; mmcv's compiled ops count zero, see
 ``cbnet_mmdet.utils.benchmark.count_flops``), inference latency at batch 1
-(median, IQR, min, max over ``--repeats`` after ``--warmup``), throughput
-at every ``--batch-sizes``, training step time (loss, backward and the
-config's own optimiser step, batch 1), and peak memory of inference and of
+(median, IQR, min, max over ``--repeats`` after ``--warmup``; the RoI
+heads of two-stage models on one fixed, realistic proposal set,
+``--proposals``), throughput at every ``--batch-sizes``, training step
+time (loss, backward and the config's own optimiser step,
+``--train-batch-size`` images), and peak memory of inference and of
 a training step (CUDA: ``max_memory_allocated``; CPU: resident-set
 high-water mark above the level at the start of the call, i.e. activations
 and workspace on top of the weights; measured on one extra call, never on a
@@ -34,6 +36,11 @@ Usage::
     python tools/analysis_tools/benchmark.py
     # shared CPU: one thread
     OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --threads 1
+    # the headline: 512x1024, the paper-reading neck beside the default
+    OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --threads 1 \
+        --models cbnet_mit-b5 b5_cells=cbnet_mit-b5 cascade-mask-rcnn_swin-s \
+        --model-cfg b5_cells model.neck.fine_path=cells \
+        --size 512 1024 --batch-sizes 1 --repeats 3 --no-train
     # GPU, fp32 then AMP, full sizes
     python tools/analysis_tools/benchmark.py --device cuda --size 1024 2048 \\
         --repeats 20 --warmup 5 \\
