@@ -10,6 +10,8 @@ import time
 import pytest
 import torch
 
+from tool_helpers import load_tool
+
 import cbnet_mmdet.utils.benchmark as benchmark_utils
 from cbnet_mmdet.utils.benchmark import (PeakMemory, count_flops,
                                          strip_pretrained, summarize)
@@ -262,11 +264,7 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
 
 
 def test_model_cfg_overrides_one_model_only(capsys):
-    sys.path.insert(0, osp.dirname(SCRIPT))
-    try:
-        import benchmark as bench_script
-    finally:
-        sys.path.pop(0)
+    bench_script = load_tool('analysis_tools/benchmark.py')
     args = bench_script.parse_args([
         '--models', 'paper=cbnet_mit-b0', 'cbnet_mit-b0', '--model-cfg',
         'paper', 'model.neck.fine_path=cells', '--train-batch-size', '2'
@@ -285,11 +283,7 @@ def test_model_cfg_overrides_one_model_only(capsys):
 def test_results_are_written_after_every_phase(tmp_path):
     """A run killed later (e.g. out of memory in a training step) keeps
     what it measured: each phase checkpoints the results."""
-    sys.path.insert(0, osp.dirname(SCRIPT))
-    try:
-        import benchmark as bench_script
-    finally:
-        sys.path.pop(0)
+    bench_script = load_tool('analysis_tools/benchmark.py')
     args = bench_script.parse_args([
         '--models', 'yolox_s', '--size', '64', '64', '--batch-sizes', '1',
         '--repeats', '1', '--warmup', '0', '--no-flops', '--scale-models',

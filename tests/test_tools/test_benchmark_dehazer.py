@@ -1,21 +1,13 @@
 """tools/dehaze/benchmark_dehazer.py on tiny images."""
-import importlib.util
 import json
-import os.path as osp
 
 import pytest
-
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-SCRIPT = osp.join(ROOT, 'tools', 'dehaze', 'benchmark_dehazer.py')
+from tool_helpers import load_tool
 
 
 @pytest.fixture(scope='module')
 def tool():
-    spec = importlib.util.spec_from_file_location('benchmark_dehazer',
-                                                  SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool('dehaze/benchmark_dehazer.py')
 
 
 def test_times_both_dehazers_per_size(tool, tmp_path):

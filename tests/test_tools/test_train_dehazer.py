@@ -1,6 +1,5 @@
 """tools/dehaze/train_dehazer.py on the tiny generated dataset."""
 import glob
-import importlib.util
 import json
 import math
 import os.path as osp
@@ -10,22 +9,19 @@ import numpy as np
 import pytest
 import torch
 from mmdet.registry import MODELS
+from tool_helpers import load_tool
 
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 from cbnet_mmdet.models.dehazers import load_dehazer_checkpoint
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-SCRIPT = osp.join(ROOT, 'tools', 'dehaze', 'train_dehazer.py')
 CONFIGS = osp.join(ROOT, 'configs', 'dehaze')
 LEARNED = osp.join(CONFIGS, 'dehazer_attention_1xb4-600it_cityscapes-like.py')
 
 
 @pytest.fixture(scope='module')
 def tool():
-    spec = importlib.util.spec_from_file_location('train_dehazer', SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool('dehaze/train_dehazer.py')
 
 
 def hazy_psnr_from_files(root, beta):
