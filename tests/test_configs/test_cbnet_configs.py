@@ -85,7 +85,7 @@ def test_headline_config_is_the_papers_recipe():
     cfg = Config.fromfile(HEADLINE)
     m = cfg.model
     assert m.backbone.type == 'CBNetMiT' and m.backbone.arch == 'b5'
-    assert m.backbone.act_cfg.type == 'Mish'
+    assert m.backbone.act_cfg.type == 'CBNetMish'
     assert m.backbone.pos_encoding == 'cspe'
     assert m.neck.type == 'CBNetNASFPN' and m.neck.out_channels == 256
     # CRPN: lambda_IoU = 10, lambda_obj = 1 (focal), lambda_GIoU = 10

@@ -156,7 +156,7 @@ class MiTEncoderLayer(BaseModule):
         attn_drop_rate (float): Dropout on attention weights.
         drop_path_rate (float): Stochastic-depth rate of both branches.
         qkv_bias (bool): Bias of the q/k/v projections.
-        act_cfg (dict): FFN activation (e.g. ``dict(type='Mish')``).
+        act_cfg (dict): FFN activation (e.g. ``dict(type='CBNetMish')``).
         norm_cfg (dict): Token normalisation layer.
         cspe_cfg (dict, optional): CSPE settings; ``None`` disables it.
         init_cfg (dict or list[dict], optional): Initialization config.
@@ -171,7 +171,7 @@ class MiTEncoderLayer(BaseModule):
                  attn_drop_rate: float = 0.,
                  drop_path_rate: float = 0.,
                  qkv_bias: bool = True,
-                 act_cfg: ConfigType = dict(type='Mish'),
+                 act_cfg: ConfigType = dict(type='CBNetMish'),
                  norm_cfg: ConfigType = dict(type='LN', eps=1e-6),
                  cspe_cfg: OptConfigType = None,
                  init_cfg: OptMultiConfig = None) -> None:

@@ -12,6 +12,7 @@ from mmseg.models.backbones import mit as mmseg_mit
 
 import cbnet_mmdet  # noqa: F401  (registers CBNetMiT)
 from cbnet_mmdet.models.backbones import CBNetMiT
+from cbnet_mmdet.models.layers import CBNetMish
 
 TINY = dict(
     embed_dims=[8, 16, 24, 32],
@@ -88,7 +89,9 @@ def test_bad_inputs():
 def test_activation_and_drop_path():
     model = build(drop_path_rate=0.3)
     ffn_acts = [m.ffn.layers[2] for s in model.layers for m in s[1]]
-    assert all(isinstance(a, nn.Mish) for a in ffn_acts)
+    assert all(isinstance(a, CBNetMish) for a in ffn_acts)
+    torch_mish = build(act_cfg=dict(type='Mish'))
+    assert isinstance(torch_mish.layers[0][1][0].ffn.layers[2], nn.Mish)
     gelu = build(act_cfg=dict(type='GELU'))
     assert isinstance(gelu.layers[0][1][0].ffn.layers[2], nn.GELU)
     rates = [m.ffn.dropout_layer.drop_prob for s in model.layers for m in s[1]]
