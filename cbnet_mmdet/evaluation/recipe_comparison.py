@@ -9,6 +9,13 @@ Foggy Cityscapes), then tested on clear val and on foggy val for each beta
 through :func:`cbnet_mmdet.evaluation.ap_drop.ap_drop`. Each run writes its
 ``result.json``; a rerun skips finished runs (resumable). The results are
 summarised as mean +- std over seeds per recipe and condition.
+
+Test-time variants. A config that sets ``compare_weights_of = PATH`` (a
+config file, relative to the variant's own folder like ``_base_``) is not
+trained: each seed tests the weights that the recipe with config ``PATH``
+trained for that seed, in the same comparison (listed before it), under
+the variant's own test settings (``model.test_cfg``, test pipeline). That
+compares, say, test-time proposal counts on the very same weights.
 """
 import copy
 import json
@@ -65,11 +72,19 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('(e) dehazer + YOLOX-Tiny, clear',
          'dehaze/yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py'),
     ],
-    # issue 18: the demo CBNet before / after the speed settings
+    # issue 18: the demo CBNet before / after the speed settings, the
+    # number of NAS-FPN stacks, and the test-time proposal count (the same
+    # weights as the light-neck row, tested with 1000 instead of 300)
     'speed': [
         ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
         ('CBNet light neck', 'demo/speed/'
          'cbnet_mit-b0_nasfpn-light_1xb4-demo_cityscapes-like.py'),
+        ('CBNet light neck, 3 stacks', 'demo/speed/'
+         'cbnet_mit-b0_nasfpn-light-3stacks_1xb4-demo_cityscapes-like.py'),
+        ('CBNet light neck, 7 stacks', 'demo/speed/'
+         'cbnet_mit-b0_nasfpn-light-7stacks_1xb4-demo_cityscapes-like.py'),
+        ('CBNet light neck, k=1000 at test', 'demo/speed/'
+         'cbnet_mit-b0_nasfpn-light_test-k1000_1xb4-demo_cityscapes-like.py'),
     ],
     # proposal recall of the three RPN heads
     'rpn': [
@@ -284,12 +299,61 @@ def result_file(out_dir: str, name: str, seed: int) -> str:
     return osp.join(out_dir, slug(name), f'seed{seed}', 'result.json')
 
 
+def checkpoint_file(out_dir: str, name: str, seed: int,
+                    budget: Budget) -> str:
+    """The weights that :func:`run_recipe` tests for one recipe and seed."""
+    last = f'iter_{budget.iters}.pth' if budget.iters > 0 else \
+        'untrained.pth'
+    return osp.join(osp.dirname(result_file(out_dir, name, seed)), last)
+
+
+def weights_sources(
+        recipes: Sequence[Tuple[str, str]]) -> Dict[str, Optional[str]]:
+    """Which recipe's weights each recipe tests (None: its own, trained).
+
+    A config with ``compare_weights_of = PATH`` names the config of an
+    earlier recipe of ``recipes``; ``PATH`` is relative to the config's
+    folder (or absolute).
+
+    Args:
+        recipes (Sequence[tuple[str, str]]): (name, config path), in order.
+
+    Returns:
+        dict: recipe name -> name of the recipe whose weights it tests.
+
+    Raises:
+        ValueError: ``PATH`` is not the config of an earlier recipe, or that
+            recipe is itself a test-time variant.
+    """
+    sources, seen = {}, {}
+    for name, config in recipes:
+        target = Config.fromfile(config).get('compare_weights_of')
+        if target is None:
+            sources[name] = None
+        else:
+            path = osp.realpath(
+                osp.join(osp.dirname(osp.abspath(config)), target))
+            source = seen.get(path)
+            if source is None or sources[source] is not None:
+                raise ValueError(
+                    f'recipe {name!r} tests the weights of {path} '
+                    '(compare_weights_of), but no earlier recipe of the '
+                    'comparison trains that config: list it before '
+                    f'{name!r}')
+            sources[name] = source
+        seen.setdefault(osp.realpath(config), name)
+    return sources
+
+
 def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
-               cfg_options: Optional[dict] = None) -> dict:
+               cfg_options: Optional[dict] = None,
+               weights_of: Optional[str] = None) -> dict:
     """Train one recipe with one seed and test it on clear and foggy val.
 
-    Finished runs are read back from their ``result.json``.
+    Finished runs are read back from their ``result.json``. With
+    ``weights_of`` nothing is trained: the weights that recipe trained for
+    ``seed`` (in ``out_dir``) are tested under this recipe's config.
 
     Args:
         name (str): Recipe name.
@@ -300,10 +364,13 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         betas (Sequence[float]): Fog densities (1/m) to test on.
         out_dir (str): Output folder of the comparison.
         cfg_options (dict, optional): Config overrides.
+        weights_of (str, optional): Name of the recipe whose weights to
+            test (a test-time variant); None trains this recipe.
 
     Returns:
-        dict: ``recipe``, ``config``, ``seed``, ``train_time_s``,
-        ``metrics`` (per condition: ``clear``, ``foggy beta=B``).
+        dict: ``recipe``, ``config``, ``seed``, ``train_time_s`` (None for
+        a test-time variant, which also has ``weights_of``), ``metrics``
+        (per condition: ``clear``, ``foggy beta=B``).
     """
     from mmengine.runner import Runner
 
@@ -315,21 +382,29 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
     cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
-    runner = Runner.from_cfg(cfg)
-    start = time.perf_counter()
-    if budget.iters > 0:
-        runner.train()
-        checkpoint = osp.join(run_dir, f'iter_{budget.iters}.pth')
+    extra = {}
+    if weights_of is not None:
+        checkpoint = checkpoint_file(out_dir, weights_of, seed, budget)
+        if not osp.isfile(checkpoint):
+            raise FileNotFoundError(
+                f'recipe {name!r} tests the weights of {weights_of!r}, seed '
+                f'{seed}, but {checkpoint} does not exist')
+        train_time, extra = None, dict(weights_of=weights_of)
     else:
-        checkpoint = osp.join(run_dir, 'untrained.pth')
-        _save_untrained(runner, checkpoint)
-    train_time = time.perf_counter() - start
-    del runner
+        runner = Runner.from_cfg(cfg)
+        start = time.perf_counter()
+        checkpoint = checkpoint_file(out_dir, name, seed, budget)
+        if budget.iters > 0:
+            runner.train()
+        else:
+            _save_untrained(runner, checkpoint)
+        train_time = time.perf_counter() - start
+        del runner
     test_cfg = copy.deepcopy(cfg)
     table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas)
     result = dict(
         recipe=name, config=config, seed=seed, budget=asdict(budget),
-        train_time_s=train_time, metrics=table['metrics'])
+        train_time_s=train_time, metrics=table['metrics'], **extra)
     os.makedirs(run_dir, exist_ok=True)
     with open(path, 'w') as f:
         json.dump(result, f, indent=1)
@@ -396,8 +471,10 @@ def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
 
     summary = {}
     for recipe, runs in recipes.items():
-        entry = {'train time (s)': mean_std([r['train_time_s']
-                                             for r in runs])}
+        times = [r['train_time_s'] for r in runs
+                 if r.get('train_time_s') is not None]
+        # a test-time variant trains nothing: '-'
+        entry = {'train time (s)': mean_std(times) if times else None}
         for condition in conditions:
             row = {}
             for col, key, scale in columns:
@@ -541,22 +618,27 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             '--convert`, or convert the real one with '
             '`python tools/dataset_converters/cityscapes.py DIR`)')
     os.makedirs(out_dir, exist_ok=True)
+    sources = weights_sources(recipes)
     # seed-major: a comparison cut short still has every recipe at the
     # seeds it finished
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
     finished = [osp.isfile(result_file(out_dir, n, s)) for n, _, s in jobs]
-    left = finished.count(False)  # runs still to train
+    # runs still to train (a test-time variant's test is not counted)
+    left = sum(not done and sources[n] is None
+               for (n, _, _), done in zip(jobs, finished))
     results, spent, fresh = [], 0.0, 0
     for k, ((name, config, seed), done) in enumerate(zip(jobs, finished), 1):
         eta = ''
         if fresh:
             eta = f', about {math.ceil(spent / fresh * left / 60)} min left'
+        doing = 'training' if sources[name] is None else \
+            f'testing the weights of {sources[name]!r}'
         log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
-            f'{"already done" if done else "training"}{eta}')
+            f'{"already done" if done else doing}{eta}')
         start = time.perf_counter()
         result = run_recipe(name, config, seed, budget, data_root, betas,
-                            out_dir, cfg_options)
-        if not done:
+                            out_dir, cfg_options, weights_of=sources[name])
+        if not done and sources[name] is None:
             spent += time.perf_counter() - start
             fresh += 1
             left -= 1
