@@ -171,9 +171,18 @@ class ContextualPositionEncoding(BaseModule):
         qr = qr.view(batch, self.num_heads, hq, wq, nb, nb)
         by = self.bucket_index(hq, hk, sr_ratio, q.device)
         bx = self.bucket_index(wq, wk, sr_ratio, q.device)
-        # two gathers with broadcast (stride-0) indices: the y bucket
-        # depends on (iy, jy) only, the x bucket on (ix, jx) only, so no
-        # [N, M] index tensor is ever materialised.
+        if self.num_heads > 1:
+            # one gather over the flattened 2-D bucket with an [N, M]
+            # index (as large as one head's output), shared by the heads:
+            # MiT-B5 stage 3 at 512x1024 (5 heads), 24 -> 15 ms a block
+            index = (by.view(hq, 1, hk, 1) * nb +
+                     bx.view(1, wq, 1, wk)).view(1, 1, hq * wq, hk * wk)
+            return qr.view(batch, self.num_heads, hq * wq, nb * nb).gather(
+                3, index.expand(batch, self.num_heads, -1, -1))
+        # one head: two gathers with broadcast (stride-0) indices, as the
+        # y bucket depends on (iy, jy) only and the x bucket on (ix, jx)
+        # only, so no [N, M] index is materialised (stage 1 of MiT at
+        # 512x1024: 128 ms, against 190 ms with the index)
         bias = qr.gather(
             4,
             by.view(1, 1, hq, 1, hk, 1).expand(batch, self.num_heads, hq, wq,

@@ -47,9 +47,10 @@ def test_relative_offsets_use_reduced_key_centres():
 
 @pytest.mark.parametrize('hq,wq,sr', [(9, 7, 4), (8, 8, 8), (5, 3, 1),
                                       (11, 13, 2), (1, 1, 1)])
-def test_cspe_term_matches_brute_force(hq, wq, sr):
+@pytest.mark.parametrize('heads', [1, 2])  # two gathers / one gather
+def test_cspe_term_matches_brute_force(hq, wq, sr, heads):
     torch.manual_seed(0)
-    heads, dims = 2, 4
+    dims = 4
     cspe = ContextualPositionEncoding(heads, dims, alpha=2, beta=4, gamma=9)
     torch.nn.init.normal_(cspe.table)
     hk, wk = hq // sr, wq // sr
@@ -70,13 +71,14 @@ def test_cspe_term_matches_brute_force(hq, wq, sr):
     torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-6)
 
 
-def test_cspe_empty_batch_and_gradient():
-    cspe = ContextualPositionEncoding(2, 4)
-    assert cspe.table.shape == (2, 15 * 15, 4)
+@pytest.mark.parametrize('heads', [1, 2])
+def test_cspe_empty_batch_and_gradient(heads):
+    cspe = ContextualPositionEncoding(heads, 4)
+    assert cspe.table.shape == (heads, 15 * 15, 4)
     assert cspe.table.abs().sum() == 0  # zero init: OPE function at start
-    out = cspe(torch.randn(0, 2, 12, 4), (3, 4), (1, 2), 2)
-    assert out.shape == (0, 2, 12, 2)
-    q = torch.randn(1, 2, 12, 4)
+    out = cspe(torch.randn(0, heads, 12, 4), (3, 4), (1, 2), 2)
+    assert out.shape == (0, heads, 12, 2)
+    q = torch.randn(1, heads, 12, 4)
     out = cspe(q, (3, 4), (1, 2), 2)
     (out * torch.randn_like(out)).sum().backward()
     used = torch.zeros(15 * 15, dtype=torch.bool)
