@@ -229,15 +229,24 @@ class FixedProposals:
     RoIs from the proposals and the ground truth. A detector without an
     ``rpn_head`` (single-stage) is left alone.
 
+    The number of proposals is, by default, what the model's RPN returns
+    at test time (``test_cfg.rpn.max_per_img``): the first (top-scored)
+    ``num`` boxes of the one 1000-box set, as a trained RPN that keeps
+    fewer returns its best ones.
+
     Args:
         model (nn.Module): The detector.
-        num (int): Proposals per image.
+        num (int, optional): Proposals per image; None: the RPN's
+            ``test_cfg.max_per_img`` (1000 if it has none).
         seed (int): Seed of the proposal set.
     """
 
-    def __init__(self, model: nn.Module, num: int = 1000,
+    def __init__(self, model: nn.Module, num: Optional[int] = None,
                  seed: int = 0) -> None:
         self.head = getattr(model, 'rpn_head', None)
+        if num is None:
+            test_cfg = getattr(self.head, 'test_cfg', None) or {}
+            num = test_cfg.get('max_per_img', 1000)
         self.num, self.seed = num, seed
 
     def _predict(self, x, batch_data_samples, rescale=False):
@@ -246,7 +255,8 @@ class FixedProposals:
         fixed = []
         for result, sample in zip(results, batch_data_samples):
             boxes = realistic_proposals(
-                sample.metainfo['img_shape'], self.num, seed=self.seed)
+                sample.metainfo['img_shape'], max(self.num, 1000),
+                seed=self.seed)[:self.num]
             boxes = boxes.to(result.bboxes.device, result.bboxes.dtype)
             fixed.append(InstanceData(
                 bboxes=boxes,

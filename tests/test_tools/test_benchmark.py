@@ -254,8 +254,15 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
     with torch.no_grad(), FixedProposals(model, num=50):
         model(**data, mode='predict')
     assert calls == [1]  # the RPN's cost is still measured
-    torch.testing.assert_close(
-        seen[0], benchmark_utils.realistic_proposals((64, 128), num=50))
+    full = benchmark_utils.realistic_proposals((64, 128), num=1000)
+    # the top 50 of the one 1000-box set
+    torch.testing.assert_close(seen[0], full[:50])
+    # by default as many as the RPN keeps at test time
+    keep = model.rpn_head.test_cfg.max_per_img
+    assert keep < 1000
+    with torch.no_grad(), FixedProposals(model):
+        model(**data, mode='predict')
+    torch.testing.assert_close(seen[1], full[:keep])
     assert model.rpn_head.predict is spy_rpn  # put back
     del model.rpn_head.predict
     with FixedProposals(model):
@@ -296,3 +303,32 @@ def test_results_are_written_after_every_phase(tmp_path):
     assert [s[1] for s in seen] == [[], [], ['yolox_s']]
     assert 'inference' in seen[0][0] and 'train_step' not in seen[0][0]
     assert 'train_step' in seen[1][0]
+
+
+def test_test_time_proposal_count_is_recorded(tmp_path):
+    """Each two-stage model's RoI heads get as many fixed proposals as its
+    RPN keeps at test time, and the tables say how many."""
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    args = bench_script.parse_args([
+        '--models', 'cbnet_mit-b0', 'k1000=cbnet_mit-b0', '--model-cfg',
+        'k1000', 'model.test_cfg.rpn.max_per_img=1000', '--size', '64',
+        '64', '--batch-sizes', '1', '--repeats', '1', '--warmup', '0',
+        '--no-flops', '--no-train', '--scale-models', '--scale-items',
+        '--threads', '1', '--out-dir', str(tmp_path)
+    ])
+    results, _ = bench_script.run(args, lambda res, sca: None)
+    cfg = benchmark_utils.load_benchmark_cfg(
+        osp.join(ROOT, args.configs['cbnet_mit-b0']))
+    keep = cfg.model.test_cfg.rpn.max_per_img
+    assert keep < 1000
+    assert results['cbnet_mit-b0']['test_proposals'] == keep
+    assert results['k1000']['test_proposals'] == 1000
+    bench_script.main([
+        '--models', 'yolox_s', '--size', '64', '64', '--batch-sizes', '1',
+        '--repeats', '1', '--warmup', '0', '--no-flops', '--no-train',
+        '--scale-models', '--scale-items', '--threads', '1', '--out-dir',
+        str(tmp_path / 'single')
+    ])
+    # a single-stage model has no proposals: no such line
+    assert 'proposals per image at test time' not in (
+        tmp_path / 'single' / 'benchmark.md').read_text()

@@ -80,8 +80,9 @@ MODELS = {
 }
 #: how the inference RoI heads got their proposals, for the tables
 PROPOSALS = dict(
-    fixed='the same fixed, realistic 1000 proposals per image for every '
-    'model (realistic_proposals)',
+    fixed='one fixed, realistic proposal set for every model '
+    '(realistic_proposals), as many per image as its RPN keeps at test '
+    'time (test_cfg.rpn.max_per_img: the top ones of the same 1000)',
     model="each random-weight RPN's own proposals")
 #: the reference row of the ratios
 REFERENCE = 'cascade-mask-rcnn_swin-s'
@@ -113,7 +114,8 @@ def parse_args(argv=None):
     p.add_argument('--proposals', choices=['fixed', 'model'],
                    default='fixed',
                    help='inference RoI heads run on a fixed, realistic '
-                   'proposal set, the same for every model (default; '
+                   'proposal set, the same for every model, as many as '
+                   'its test_cfg.rpn.max_per_img (default; '
                    'cbnet_mmdet.utils.benchmark.realistic_proposals), or '
                    'on what each random-weight RPN proposes')
     p.add_argument('--train-batch-size', type=int, default=1,
@@ -281,6 +283,8 @@ def run(args, checkpoint=lambda results, scaling: None):
         results[n]['params_m'] = B.count_params(model) / 1e6
         results[n]['weights_mib'] = sum(
             p.numel() * p.element_size() for p in model.parameters()) / 2**20
+        if args.proposals == 'fixed' and hasattr(model, 'rpn_head'):
+            results[n]['test_proposals'] = B.FixedProposals(model).num
         if not args.no_flops:
             model.eval()
             raw = bench.batch(n, size)
@@ -426,7 +430,11 @@ def markdown(meta, results, scaling):
     ] + [
         f'- {name}: ' + ', '.join(f'`{k}={v}`' for k, v in opts.items())
         for name, opts in meta.get('overrides', {}).items()
-    ] + [
+    ] + ([
+        '- proposals per image at test time: ' + ', '.join(
+            f'{name} {r["test_proposals"]}' for name, r in results.items()
+            if 'test_proposals' in r)
+    ] if any('test_proposals' in r for r in results.values()) else []) + [
         '',
         '| model | params (M) | GFLOPs infer / backbone+neck | latency b1 '
         '(s, median [IQR]) | img/s ' +
