@@ -31,6 +31,37 @@ def test_resolve_recipes_errors(tmp_path):
         rc.resolve_recipes(configs=[f'a={cfg}', f'a={cfg}'])
 
 
+def test_weights_sources_of_test_time_variants(tmp_path):
+    """``compare_weights_of`` names an earlier recipe's config (relative to
+    the variant's folder); anything else is a clear error."""
+    (tmp_path / 'sub').mkdir()
+    base = tmp_path / 'base.py'
+    base.write_text('x = 1\n')
+    variant = tmp_path / 'sub' / 'variant.py'
+    variant.write_text("_base_ = '../base.py'\n"
+                       "compare_weights_of = '../base.py'\n")
+    chained = tmp_path / 'chained.py'
+    chained.write_text("compare_weights_of = './sub/variant.py'\n")
+    assert rc.weights_sources([('b', str(base)), ('v', str(variant))]) == \
+        dict(b=None, v='b')
+    with pytest.raises(ValueError, match='list it before'):
+        rc.weights_sources([('v', str(variant)), ('b', str(base))])
+    with pytest.raises(ValueError, match='list it before'):
+        rc.weights_sources([('v', str(variant))])
+    # a variant of a variant: its weights were never trained
+    with pytest.raises(ValueError, match='list it before'):
+        rc.weights_sources([('b', str(base)), ('v', str(variant)),
+                            ('c', str(chained))])
+
+
+def test_a_variant_without_its_source_weights_is_a_clear_error(tmp_path):
+    config = osp.join(ROOT, 'configs', 'demo', 'rpn',
+                      'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+    with pytest.raises(FileNotFoundError, match="weights of 'CRPN', seed 3"):
+        rc.run_recipe('k100', config, 3, rc.Budget(iters=5), str(tmp_path),
+                      [0.02], str(tmp_path), weights_of='CRPN')
+
+
 def walk_strings(node, key=None):
     if isinstance(node, dict):
         for k, v in node.items():
@@ -157,8 +188,9 @@ def test_compare_end_to_end_trained_beats_untrained(
         cityscapes_like_root, tmp_path, capsys):
     """The CLI on the tiny generated data, one seed: the RPN set's CBNet
     CRPN trained 40 iterations against the same model untrained (0). The
-    table has its structure; the trained proposals recall more. A rerun
-    reads the finished runs back (resumable)."""
+    table has its structure; the trained proposals recall more. A
+    test-time variant (100 proposals kept) tests the trained weights. A
+    rerun reads the finished runs back (resumable)."""
     import importlib.util
     spec = importlib.util.spec_from_file_location(
         'compare_recipes',
@@ -173,8 +205,16 @@ def test_compare_end_to_end_trained_beats_untrained(
               '5']
     untrained = tool.main(common + ['--iters', '0', '--work-dir',
                                     str(tmp_path / 'untrained')])
-    trained = tool.main(common + ['--iters', '40', '--work-dir',
-                                  str(tmp_path / 'trained')])
+    # a test-time variant: the CRPN's weights, 100 proposals kept
+    variant = tmp_path / 'k100.py'
+    variant.write_text(f"_base_ = '{crpn}'\ncompare_weights_of = '{crpn}'\n"
+                       'model = dict(test_cfg=dict(rpn=dict('
+                       'max_per_img=100)))\n')
+    with_variant = common + [
+        '--iters', '40', '--work-dir', str(tmp_path / 'trained'),
+        '--configs', f'CRPN={crpn}', f'k100={variant}'
+    ]
+    trained = tool.main(with_variant)
     for record, out in ((untrained, 'untrained'), (trained, 'trained')):
         assert osp.isfile(tmp_path / out / 'compare.png')
         with open(tmp_path / out / 'compare.json') as f:
@@ -186,7 +226,18 @@ def test_compare_end_to_end_trained_beats_untrained(
     ar = [r['summary']['summary']['CRPN']['clear']['AR@1000']['mean']
           for r in (untrained, trained)]
     assert ar[1] > ar[0], ar
-    again = tool.main(common + ['--iters', '40', '--work-dir',
-                                str(tmp_path / 'trained')])
+    # the variant tested the same weights, trained nothing, and with 100
+    # proposals kept recalls as much at 100 and no more at 1000
+    runs = {r['recipe']: r for r in trained['runs']}
+    assert runs['k100']['weights_of'] == 'CRPN'
+    assert runs['k100']['train_time_s'] is None
+    assert not osp.exists(tmp_path / 'trained' / 'k100' / 'seed0' /
+                          'iter_40.pth')
+    clear = {n: r['metrics']['clear'] for n, r in runs.items()}
+    assert clear['k100']['coco/AR@100'] == pytest.approx(
+        clear['CRPN']['coco/AR@100'], abs=1e-3)
+    assert clear['k100']['coco/AR@1000'] < clear['CRPN']['coco/AR@1000']
+    assert '| k100 |' in (tmp_path / 'trained' / 'compare.md').read_text()
+    again = tool.main(with_variant)
     assert 'already done' in capsys.readouterr().out
     assert again['runs'] == trained['runs']

@@ -9,9 +9,17 @@ drop from clear to each fog density, training time) and ``compare.png``
 (the main metric vs fog density per recipe). Finished runs are kept: a
 rerun (after a kill, or with more seeds) only trains what is missing.
 
-Built-in sets (configs under configs/demo/, all on one MiT-B0 trunk):
+A config that sets ``compare_weights_of = 'other_config.py'`` (relative to
+its folder) is a test-time variant: not trained, it tests the weights that
+recipe trained for each seed (list that recipe first) under its own test
+settings.
+
+Built-in sets (configs under configs/, demo-size, one MiT-B0 trunk):
   arch      CBNet vs MMDet's stock Cascade Mask R-CNN and Mask R-CNN
   ablation  the four rows of the paper's Table 3 (trained on foggy images)
+  dehaze    CBNet on fog vs dehazer + detector (train the dehazer first)
+  speed     the speed settings of issue 18: light neck, 3 / 7 stacks,
+            1000 proposals at test (a test-time variant)
   rpn       CBNet's Cascade RPN vs RPNHead vs MMDet's CascadeRPNHead
 
 Examples::
