@@ -75,9 +75,10 @@ class CBNetNASFPN(NASFPN):
         channels_last (bool, optional): Run the cells on ``channels_last``
             tensors (outputs are returned contiguous NCHW, as the RoI and
             deformable-convolution ops downstream expect). ``None``
-            (default): on CPU only, where oneDNN's 3x3 convolutions are
-            much faster on NHWC tensors (MiT-B5 widths, 256x512 input, one
-            thread: forward 854 -> 631 ms; same results up to rounding).
+            (default): at CPU inference only, where oneDNN's 3x3
+            convolutions run forward faster on NHWC tensors (MiT-B5 widths,
+            256x512 input, one thread: 854 -> 631 ms; same results up to
+            rounding) but backward much slower (``use_channels_last``).
         init_cfg (dict or list[dict], optional): Initialisation config.
             Defaults to Caffe2Xavier on every ``Conv2d``.
     """

@@ -158,15 +158,16 @@ def test_on_mit_b0_outputs(img_hw):
 
 @pytest.mark.parametrize('img_hw', [(64, 96), (97, 75)])
 def test_channels_last_is_the_same_function(img_hw):
-    """The CPU default (channels_last cells) computes what NCHW does, and
-    hands contiguous NCHW maps to the heads (mmcv's RoIAlign and deformable
-    convolution read raw NCHW memory)."""
+    """The CPU inference default (channels_last cells) computes what NCHW
+    does, and hands contiguous NCHW maps to the heads (mmcv's RoIAlign and
+    deformable convolution read raw NCHW memory)."""
     torch.manual_seed(0)
     fast = build(stack_times=2, num_outs=6)
     plain = build(stack_times=2, num_outs=6, channels_last=False)
     plain.load_state_dict(fast.state_dict())
     feats = mit_like_feats(MIT_B0, img_hw)
-    outs = fast(feats)
+    with torch.no_grad():
+        outs = fast(feats)
     assert all(o.is_contiguous() for o in outs)
     for a, b in zip(outs, plain(feats)):
         torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)

@@ -47,11 +47,12 @@ def test_forward_outputs():
 
 @pytest.mark.parametrize('num_rois', [0, 7])
 def test_channels_last_matches_fcn_mask_head(num_rois):
-    """The CPU channels_last path computes FCNMaskHead's function, returns
-    contiguous NCHW logits, and passes the same gradients back."""
+    """The channels_last path (forced: by default CPU inference only)
+    computes FCNMaskHead's function, returns contiguous NCHW logits, and
+    passes the same gradients back."""
     from mmdet.models.roi_heads.mask_heads import FCNMaskHead
     torch.manual_seed(0)
-    head = build(num_convs=2, channels_last=None)
+    head = build(num_convs=2, channels_last=True)
     ref = FCNMaskHead(num_convs=2, in_channels=8, conv_out_channels=8,
                       num_classes=3)
     ref.load_state_dict(head.state_dict(), strict=False)

@@ -32,12 +32,14 @@ class CBNetBoundaryMaskHead(FCNMaskHead):
     erosion, the same contour the boundary-aware mask loss uses), logged as
     ``loss_edge``. ``loss_edge=None`` keeps the output unsupervised.
 
-    On CPU the convolutions run in ``channels_last`` memory format (the
-    RoI features are converted once, the logits converted back): oneDNN's
-    3x3 and transposed convolutions are much faster on NHWC than on NCHW
-    tensors (measured with 100 RoIs of 256 x 14 x 14, one thread: forward
-    830 -> 466 ms, forward + backward 2394 -> 1760 ms; same results up to
-    float rounding). ``channels_last`` forces it on or off.
+    At CPU inference the convolutions run in ``channels_last`` memory
+    format (the RoI features are converted once, the logits converted
+    back): oneDNN's 3x3 and transposed convolutions run forward much faster
+    on NHWC than on NCHW tensors (100 RoIs of 256 x 14 x 14, one thread:
+    830 -> 466 ms; same results up to float rounding). In training it
+    gains nothing (forward + backward, 128 RoIs, 4 convs: 6.39 vs 6.37 s)
+    and the neck's convolutions lose (see ``use_channels_last``), so both
+    keep NCHW there. ``channels_last`` forces it on or off.
 
     Args:
         loss_edge (dict, optional): Loss config of the edge output, called
