@@ -147,6 +147,12 @@ def peak_memory(name, num_rois, args):
 
 def main(argv=None):
     args = parse_args(argv)
+    from cbnet_mmdet.utils.benchmark import set_malloc_thresholds
+
+    # glibc's steady allocator for every timed call (as benchmark.py):
+    # otherwise the 25 MiB logits gradient is mapped and page-faulted anew
+    # in a varying share of the steps, the main source of the spread
+    set_malloc_thresholds()
     if args.threads:
         torch.set_num_threads(args.threads)
     rows = []

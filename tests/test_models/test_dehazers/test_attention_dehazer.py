@@ -57,8 +57,8 @@ def test_empty_batch_and_extreme_frames():
 def test_grey_converted_rgba_and_bad_values_refused():
     model = perturbed().eval()
     grey = torch.rand(1, 1, 12, 12)
-    torch.testing.assert_close(model(grey), model(grey.expand(-1, 3, -1,
-                                                               -1)))
+    torch.testing.assert_close(model(grey),
+                               model(grey.expand(-1, 3, -1, -1)))
     with pytest.raises(ValueError, match='RGBA'):
         model(torch.rand(1, 4, 12, 12))
     with pytest.raises(ValueError, match='channels'):

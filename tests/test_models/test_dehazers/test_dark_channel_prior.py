@@ -115,8 +115,8 @@ def test_guided_filter_matches_numpy_rederivation():
     r, eps = 3, 1e-2
     f = lambda x: numpy_box_mean(x, r)  # noqa: E731
     mean_i, mean_p = f(guide), f(src)
-    a = (f(guide * src) - mean_i * mean_p) / (f(guide * guide) -
-                                               mean_i**2 + eps)
+    a = (f(guide * src) - mean_i * mean_p) / (
+        f(guide * guide) - mean_i**2 + eps)
     b = mean_p - a * mean_i
     ref = f(a) * guide + f(b)
     t = lambda x: torch.from_numpy(x)[None, None]  # noqa: E731
