@@ -139,10 +139,10 @@ model = dict(
     test_cfg=dict(
         rpn=dict(
             nms_pre=1000,
-            # proposals kept at test time: 300, as in the demo and the
-            # Cascade RPN paper's Fast R-CNN tests; the paper's k = 1000
-            # costs 2.5 s more per 512x1024 image on CPU for no AP on the
-            # harness (docs/benchmarks.md, issue 18); set 1000 for it
+            # proposals kept at test time: 300, as in the demo. The paper's
+            # k = 1000 (set 1000 for it) costs 2.5 s more per 512x1024 image
+            # on CPU and scored less AP with the same weights on the
+            # harness (docs/accuracy.md, speed set; issue 18)
             max_per_img=300,
             nms=dict(type='nms', iou_threshold=0.8),
             min_bbox_size=0),
