@@ -40,23 +40,26 @@ def _dense(t: Tensor) -> bool:
         t.dim() == 4 and t.is_contiguous(memory_format=torch.channels_last))
 
 
-def _tanh_softplus(x: Tensor) -> Tensor:
-    """``tanh(softplus(x))`` from one exp (a new tensor)."""
-    e = torch.clamp(x, max=_CLAMP).exp_()
-    n = e.add(2.0).mul_(e)
+def _exp(x: Tensor) -> Tensor:
+    """``exp(min(x, 20))`` (a new tensor)."""
+    return torch.clamp(x, max=_CLAMP).exp_()
+
+
+def _tanh_softplus(e: Tensor) -> Tensor:
+    """``tanh(softplus(x))`` from ``e = exp(x)`` (a new tensor)."""
+    n = (e + 2.0).mul_(e)
     return n.div_(n + 2.0)
 
 
 def _forward(x: Tensor, out: Tensor) -> None:
-    torch.mul(_tanh_softplus(x), x, out=out)
+    torch.mul(_tanh_softplus(_exp(x)), x, out=out)
 
 
 def _backward(x: Tensor, grad: Tensor, out: Tensor) -> None:
-    e = torch.clamp(x, max=_CLAMP).exp_()
+    e = _exp(x)
     # x * sigmoid(x), sigmoid(x) = e / (1 + e)
     x_sigmoid = (e + 1.0).reciprocal_().mul_(e).mul_(x)
-    n = (e + 2.0).mul_(e)
-    t = n.div_(n + 2.0)  # tanh(softplus(x))
+    t = _tanh_softplus(e)
     # d mish / dx = t + x * sigmoid(x) * (1 - t^2)
     slope = torch.addcmul(t, x_sigmoid,
                           torch.addcmul(torch.ones_like(t), t, t, value=-1.0))
