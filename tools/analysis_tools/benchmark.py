@@ -36,7 +36,8 @@ Usage::
     python tools/analysis_tools/benchmark.py
     # shared CPU: one thread
     OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --threads 1
-    # the headline: 512x1024, the paper-reading neck beside the default
+    # 512x1024, the 'cells' neck beside the default (the headline run,
+    # with every model it compares, is in docs/benchmarks.md)
     OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --threads 1 \
         --models cbnet_mit-b5 b5_cells=cbnet_mit-b5 cascade-mask-rcnn_swin-s \
         --model-cfg b5_cells model.neck.fine_path=cells \
