@@ -1,0 +1,130 @@
+"""configs/demo/parts/: each config is one of the two demo recipes (the
+stock Cascade Mask R-CNN on SegFormer's MiT-B0, the demo CBNet) with ONE
+part swapped for the other recipe's, and the parts together are every
+difference between the two."""
+import os.path as osp
+
+import pytest
+from mmengine.config import Config
+
+from cbnet_mmdet.evaluation import recipe_comparison as rc
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+DEMO = osp.join(ROOT, 'configs', 'demo')
+PARTS = osp.join(DEMO, 'parts')
+STOCK = osp.join(PARTS, 'cascade-mask-rcnn_mit-b0-gelu-ope_fpn_1xb4-demo_'
+                 'cityscapes-like.py')
+CBNET = osp.join(DEMO, 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+
+#: The model keys (flattened, dotted) each part owns.
+PART_KEYS = {
+    'trunk': ('backbone.act_cfg', 'backbone.pos_encoding'),
+    'neck': ('neck', 'data_preprocessor.pad_size_divisor'),
+    'rpn': ('rpn_head', 'train_cfg.rpn', 'train_cfg.rpn_proposal.nms',
+            'test_cfg.rpn.nms'),
+    'iou': ('train_cfg.rcnn.0.assigner', 'train_cfg.rcnn.1.assigner',
+            'train_cfg.rcnn.2.assigner'),
+    'mask stage': ('roi_head.type', ),
+    'mask loss': ('roi_head.mask_head', ),
+    'cls': ('roi_head.bbox_head.0.loss_cls', 'roi_head.bbox_head.1.loss_cls',
+            'roi_head.bbox_head.2.loss_cls'),
+}
+#: (config file, the recipe it starts from, the part it swaps).
+SWAPS = [
+    ('../cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py', 'stock',
+     'trunk'),
+    ('cascade-mask-rcnn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py', 'stock',
+     'neck'),
+    ('cascade-mask-rcnn_mit-b0_fpn-crpn_1xb4-demo_cityscapes-like.py',
+     'stock', 'rpn'),
+    ('cascade-mask-rcnn_mit-b0_fpn-iou579_1xb4-demo_cityscapes-like.py',
+     'stock', 'iou'),
+    ('cascade-mask-rcnn_mit-b0_fpn-last-stage-mask_1xb4-demo_cityscapes-'
+     'like.py', 'stock', 'mask stage'),
+    ('cascade-mask-rcnn_mit-b0_fpn-boundary-loss_1xb4-demo_cityscapes-'
+     'like.py', 'stock', 'mask loss'),
+    ('cascade-mask-rcnn_mit-b0_fpn-sigmoid-cls_1xb4-demo_cityscapes-like.py',
+     'stock', 'cls'),
+    ('cbnet_mit-b0-gelu-ope_nasfpn_1xb4-demo_cityscapes-like.py', 'cbnet',
+     'trunk'),
+    ('cbnet_mit-b0_fpn_1xb4-demo_cityscapes-like.py', 'cbnet', 'neck'),
+    ('cbnet_mit-b0_nasfpn-rpn_1xb4-demo_cityscapes-like.py', 'cbnet', 'rpn'),
+    ('cbnet_mit-b0_nasfpn-iou567_1xb4-demo_cityscapes-like.py', 'cbnet',
+     'iou'),
+    ('cbnet_mit-b0_nasfpn-mask-per-stage_1xb4-demo_cityscapes-like.py',
+     'cbnet', 'mask stage'),
+    ('cbnet_mit-b0_nasfpn-bce-mask_1xb4-demo_cityscapes-like.py', 'cbnet',
+     'mask loss'),
+    ('cbnet_mit-b0_nasfpn-softmax-cls_1xb4-demo_cityscapes-like.py', 'cbnet',
+     'cls'),
+]
+
+
+def flat(node, prefix=''):
+    """``{'a.b.0.c': leaf}`` of nested dicts and lists."""
+    if isinstance(node, dict):
+        items = node.items()
+    elif isinstance(node, (list, tuple)) and any(
+            isinstance(v, (dict, list, tuple)) for v in node):
+        items = ((str(i), v) for i, v in enumerate(node))
+    else:
+        return {prefix[:-1]: list(node) if isinstance(node, tuple)
+                else node}
+    out = {}
+    for key, value in items:
+        out.update(flat(value, f'{prefix}{key}.'))
+    if not out:
+        out[prefix[:-1]] = type(node)()
+    return out
+
+
+def model_of(path):
+    model = Config.fromfile(path).model.to_dict()
+    # the registry scope that an mmdet:: base adds, not a part of the model
+    model.pop('_scope_', None)
+    return flat(model)
+
+
+def owner(key):
+    return [p for p, keys in PART_KEYS.items()
+            if any(key == k or key.startswith(k + '.') for k in keys)]
+
+
+def diff(a, b):
+    return {k for k in set(a) | set(b) if a.get(k, '<absent>') !=
+            b.get(k, '<absent>')}
+
+
+def test_the_parts_are_every_difference_between_the_two_recipes():
+    stock, cbnet = model_of(STOCK), model_of(CBNET)
+    differing = diff(stock, cbnet)
+    assert differing
+    unowned = sorted(k for k in differing if not owner(k))
+    assert not unowned, f'differences no part accounts for: {unowned}'
+    # and every part is a real difference
+    assert {p for k in differing for p in owner(k)} == set(PART_KEYS)
+
+
+@pytest.mark.parametrize('config,start,part', SWAPS,
+                         ids=[s[0] for s in SWAPS])
+def test_each_config_swaps_exactly_one_part(config, start, part):
+    stock, cbnet = model_of(STOCK), model_of(CBNET)
+    base, other = (stock, cbnet) if start == 'stock' else (cbnet, stock)
+    row = model_of(osp.normpath(osp.join(PARTS, config)))
+    changed = diff(base, row)
+    assert changed, f'{config} changes nothing'
+    assert {p for k in changed for p in owner(k)} == {part}, sorted(changed)
+    # what changed is the other recipe's part, whole
+    part_keys = {k for k in set(base) | set(other) if part in owner(k)}
+    for key in part_keys:
+        assert row.get(key, '<absent>') == other.get(key, '<absent>'), key
+
+
+def test_the_parts_set_lists_every_swap_once():
+    names = [n for n, _ in rc.RECIPE_SETS['parts']]
+    paths = {osp.normpath(osp.join(rc.configs_root(), p))
+             for _, p in rc.RECIPE_SETS['parts']}
+    assert len(names) == len(set(names)) == len(paths)
+    for config, _, _ in SWAPS:
+        assert osp.normpath(osp.join(PARTS, config)) in paths
+    assert STOCK in paths and CBNET in paths
