@@ -86,6 +86,43 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet light neck, k=1000 at test', 'demo/speed/'
          'cbnet_mit-b0_nasfpn-light_test-k1000_1xb4-demo_cityscapes-like.py'),
     ],
+    # issue 23: what each part of CBNet is worth. First table: MMDet's
+    # stock Cascade Mask R-CNN on SegFormer's MiT-B0 with ONE part of the
+    # demo CBNet swapped in; second: the demo CBNet with ONE part taken
+    # back to the stock choice (configs/demo/parts/_base_/parts.py)
+    'parts': [
+        ('stock (GELU, OPE)', 'demo/parts/cascade-mask-rcnn_mit-b0-gelu-'
+         'ope_fpn_1xb4-demo_cityscapes-like.py'),
+        ('stock +Mish+CSPE',
+         'demo/cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
+        ('stock +NAS-FPN', 'demo/parts/cascade-mask-rcnn_mit-b0_nasfpn_'
+         '1xb4-demo_cityscapes-like.py'),
+        ('stock +CRPN', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-crpn_'
+         '1xb4-demo_cityscapes-like.py'),
+        ('stock +IoU .5/.7/.9', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
+         'iou579_1xb4-demo_cityscapes-like.py'),
+        ('stock +last-stage mask', 'demo/parts/cascade-mask-rcnn_mit-b0_'
+         'fpn-last-stage-mask_1xb4-demo_cityscapes-like.py'),
+        ('stock +boundary loss', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
+         'boundary-loss_1xb4-demo_cityscapes-like.py'),
+        ('stock +sigmoid cls', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
+         'sigmoid-cls_1xb4-demo_cityscapes-like.py'),
+        ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
+        ('CBNet -Mish+CSPE', 'demo/parts/cbnet_mit-b0-gelu-ope_nasfpn_'
+         '1xb4-demo_cityscapes-like.py'),
+        ('CBNet -NAS-FPN',
+         'demo/parts/cbnet_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
+        ('CBNet -CRPN', 'demo/parts/cbnet_mit-b0_nasfpn-rpn_1xb4-demo_'
+         'cityscapes-like.py'),
+        ('CBNet -IoU .5/.7/.9', 'demo/parts/cbnet_mit-b0_nasfpn-iou567_'
+         '1xb4-demo_cityscapes-like.py'),
+        ('CBNet -last-stage mask', 'demo/parts/cbnet_mit-b0_nasfpn-mask-'
+         'per-stage_1xb4-demo_cityscapes-like.py'),
+        ('CBNet -boundary loss', 'demo/parts/cbnet_mit-b0_nasfpn-bce-mask_'
+         '1xb4-demo_cityscapes-like.py'),
+        ('CBNet -sigmoid cls', 'demo/parts/cbnet_mit-b0_nasfpn-softmax-'
+         'cls_1xb4-demo_cityscapes-like.py'),
+    ],
     # proposal recall of the three RPN heads
     'rpn': [
         ('CBNet CRPN',
@@ -126,12 +163,55 @@ class Budget:
         warmup_iters (int): Linear warm-up from 1 % of the lr, then
             polynomial (power 1) decay to 0 at ``iters``.
         num_workers (int): Data-loading workers.
+        img_scale (tuple[int, int], optional): ``(w, h)`` given to every
+            ``Resize`` of the training and test pipelines (the data
+            preset's image size); None keeps each config's.
     """
     iters: int = 120
     batch_size: int = 4
     lr: Optional[float] = None
     warmup_iters: int = 30
     num_workers: int = 1
+    img_scale: Optional[Tuple[int, int]] = None
+
+
+@dataclass
+class Preset:
+    """A data root and the budget that goes with it (``--preset``).
+
+    Attributes:
+        data_root (str): Where ``generate_cityscapes_like.py --preset``
+            writes the data of the same name.
+        iters (int): Training iterations per run.
+        batch_size (int): Images per iteration.
+        warmup_iters (int): Linear warm-up iterations.
+        img_scale (tuple[int, int], optional): ``(w, h)`` of every Resize
+            (None: each config's own).
+    """
+    data_root: str
+    iters: int
+    batch_size: int
+    warmup_iters: int
+    img_scale: Optional[Tuple[int, int]] = None
+
+    def describe(self) -> str:
+        size = 'config sizes' if self.img_scale is None else \
+            'x'.join(str(v) for v in self.img_scale[::-1])
+        return (f'{self.data_root}, {self.iters} iters x '
+                f'{self.batch_size} images, {size}')
+
+
+#: ``demo``: the older tables of docs/accuracy.md (128x256, 120 iterations
+#: of 4 images: every recipe at 1-5 AP). ``bench``: the benchmark of issue
+#: 23 (docs/accuracy.md "The benchmark"), where the demo-size stock Mask
+#: R-CNN reaches BENCH_AP mask AP at a seed spread of BENCH_STD.
+PRESETS: Dict[str, Preset] = {
+    'demo': Preset('data/cityscapes_like', iters=120, batch_size=4,
+                   warmup_iters=30),
+    'bench': Preset('data/cityscapes_like_bench', iters=300,
+                    batch_size=4, warmup_iters=30,
+                    img_scale=(512, 256)),
+}
 
 
 def configs_root() -> str:
@@ -147,13 +227,17 @@ def configs_root() -> str:
 
 
 def resolve_recipes(set_name: Optional[str] = None,
-                    configs: Sequence[str] = ()) -> List[Tuple[str, str]]:
+                    configs: Sequence[str] = (),
+                    only: Optional[Sequence[str]] = None
+                    ) -> List[Tuple[str, str]]:
     """Recipes of a built-in set and/or ``NAME=PATH`` (or ``PATH``) items.
 
     Args:
         set_name (str, optional): A key of :data:`RECIPE_SETS`.
         configs (Sequence[str]): Extra recipes, ``NAME=PATH`` or ``PATH``
             (named after the file).
+        only (Sequence[str], optional): Keep only these recipe names (in
+            the set's order), e.g. one table of a set first.
 
     Returns:
         list[tuple[str, str]]: (name, absolute config path), in order.
@@ -170,6 +254,13 @@ def resolve_recipes(set_name: Optional[str] = None,
         name, _, path = item.rpartition('=')
         name = name or osp.splitext(osp.basename(path))[0]
         recipes.append((name, osp.abspath(path)))
+    if only is not None:
+        known = [n for n, _ in recipes]
+        unknown = [n for n in only if n not in known]
+        if unknown:
+            raise ValueError(f'--only: no recipe named {unknown}; the '
+                             f'recipes are {known}')
+        recipes = [(n, p) for n, p in recipes if n in set(only)]
     if not recipes:
         raise ValueError('no recipes: give a --set or --configs')
     for name, path in recipes:
@@ -227,6 +318,51 @@ def replace_data_root(cfg: Config, data_root: str) -> None:
     cfg.data_root = new
 
 
+def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
+    """Give every ``Resize`` of ``cfg``'s dataloaders ``scale=img_scale``.
+
+    Every pipeline is walked, wherever it sits (wrapped or paired
+    datasets), so training and test images are resized alike.
+
+    Args:
+        cfg (Config): Modified in place.
+        img_scale (tuple[int, int]): ``(w, h)``, as MMDet's ``Resize``.
+
+    Returns:
+        int: How many ``Resize`` transforms were changed.
+
+    Raises:
+        ValueError: ``cfg`` has no ``Resize`` in its training or test
+            pipelines (the scale would silently not apply).
+    """
+    scale = tuple(int(v) for v in img_scale)
+    if len(scale) != 2 or min(scale) < 1:
+        raise ValueError(f'img_scale must be (w, h) > 0, got {img_scale}')
+    found = {'train': 0, 'test': 0}
+
+    def walk(node, part):
+        if isinstance(node, dict):
+            if node.get('type') == 'Resize' and 'scale' in node:
+                node['scale'] = scale
+                found[part] += 1
+            for value in node.values():
+                walk(value, part)
+        elif isinstance(node, (list, tuple)):
+            for value in node:
+                walk(value, part)
+
+    for key in ('train_dataloader', 'val_dataloader', 'test_dataloader'):
+        if cfg.get(key) is not None:
+            walk(cfg[key], 'train' if key.startswith('train') else 'test')
+    missing = [part for part, n in found.items() if n == 0]
+    if missing:
+        raise ValueError(
+            f'{cfg.filename}: no Resize with a scale in its {missing} '
+            f'pipeline(s), so img_scale {scale} cannot be applied; resize '
+            'with MMDet\'s Resize or leave img_scale unset')
+    return sum(found.values())
+
+
 def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
                work_dir: str, cfg_options: Optional[dict] = None) -> Config:
     """The config of one run: ``config`` under ``budget`` and ``seed``.
@@ -278,6 +414,8 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     cfg.load_from = None
     cfg.resume = False
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
+    if budget.img_scale is not None:
+        set_img_scale(cfg, budget.img_scale)
     if cfg_options:
         cfg.merge_from_dict(cfg_options)
     return cfg
@@ -345,6 +483,72 @@ def weights_sources(
     return sources
 
 
+def read_result(path: str, budget: Budget) -> dict:
+    """A finished run's ``result.json``, checked against ``budget``.
+
+    Args:
+        path (str): The run's ``result.json``.
+        budget (Budget): The budget of the comparison that reads it.
+
+    Returns:
+        dict: The run's record.
+
+    Raises:
+        ValueError: The run was trained under another budget (another
+            ``--iters``, batch, image size...): its numbers would be mixed
+            into this comparison's tables silently.
+    """
+    with open(path) as f:
+        result = json.load(f)
+    want = json.loads(json.dumps(asdict(budget)))
+    have = dict(want, **result.get('budget', {}))
+    if have != want:
+        changed = {k: (have[k], want[k]) for k in want if have[k] != want[k]}
+        raise ValueError(
+            f'{path} was trained under another budget (was, now): {changed}; '
+            'give this comparison its own --work-dir')
+    return result
+
+
+def restore_runs(record_path: str, out_dir: str, budget: Budget) -> int:
+    """Write the runs of a saved ``compare.json`` back as ``result.json``.
+
+    A comparison's record (e.g. committed under ``docs/accuracy/``) holds
+    every run it finished; restoring them into a fresh ``out_dir`` lets a
+    comparison go on on another machine or in another session, training
+    only what the record lacks. Runs already in ``out_dir`` are kept.
+
+    Args:
+        record_path (str): A ``compare.json``.
+        out_dir (str): The comparison's output folder.
+        budget (Budget): This comparison's budget; the record's must match.
+
+    Returns:
+        int: How many runs were written.
+
+    Raises:
+        ValueError: The record's budget is not ``budget``.
+    """
+    with open(record_path) as f:
+        record = json.load(f)
+    want = json.loads(json.dumps(asdict(budget)))
+    have = dict(want, **record.get('budget', {}))
+    if have != want:
+        raise ValueError(
+            f'{record_path} was made under budget {have}, this comparison '
+            f'runs {want}: its runs cannot be mixed in')
+    written = 0
+    for run in record.get('runs', []):
+        path = result_file(out_dir, run['recipe'], run['seed'])
+        if osp.isfile(path):
+            continue
+        os.makedirs(osp.dirname(path), exist_ok=True)
+        with open(path, 'w') as f:
+            json.dump(run, f, indent=1)
+        written += 1
+    return written
+
+
 def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
                cfg_options: Optional[dict] = None,
@@ -377,8 +581,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     path = result_file(out_dir, name, seed)
     run_dir = osp.dirname(path)
     if osp.isfile(path):
-        with open(path) as f:
-            return json.load(f)
+        return read_result(path, budget)
     cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
     cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
@@ -409,6 +612,70 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     with open(path, 'w') as f:
         json.dump(result, f, indent=1)
     return result
+
+
+class RunLock:
+    """A lock file in a run's folder, held by the process training it.
+
+    ``acquire`` creates ``.lock`` (holding ``host:pid``) atomically. A lock
+    left by a process that no longer runs on this host (killed) is stale
+    and taken over, so a killed comparison resumes.
+
+    Args:
+        run_dir (str): The run's folder (created if missing).
+    """
+
+    def __init__(self, run_dir: str):
+        os.makedirs(run_dir, exist_ok=True)
+        self.path = osp.join(run_dir, '.lock')
+        self.held = False
+
+    @staticmethod
+    def _me() -> str:
+        return f'{platform.node()}:{os.getpid()}'
+
+    def holder(self) -> Optional[str]:
+        """``host:pid`` of the lock's holder, None when unlocked."""
+        try:
+            with open(self.path) as f:
+                return f.read().strip() or None
+        except FileNotFoundError:
+            return None
+
+    def _stale(self, holder: Optional[str]) -> bool:
+        host, _, pid = (holder or '').rpartition(':')
+        if host != platform.node() or not pid.isdigit():
+            # another machine's lock (shared folder), or being written
+            return False
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            return True
+        except PermissionError:
+            return False
+        return False
+
+    def acquire(self) -> bool:
+        """Take the lock; False if a live process holds it."""
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            except FileExistsError:
+                if not self._stale(self.holder()):
+                    return False
+                os.remove(self.path)
+                continue
+            with os.fdopen(fd, 'w') as f:
+                f.write(self._me())
+            self.held = True
+            return True
+        return False
+
+    def release(self) -> None:
+        """Drop the lock if this object holds it."""
+        if self.held and self.holder() == self._me():
+            os.remove(self.path)
+        self.held = False
 
 
 def condition_names(betas: Sequence[float]) -> List[str]:
@@ -587,7 +854,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget: Budget, data_root: str, betas: Sequence[float],
             out_dir: str, cfg_options: Optional[dict] = None,
             log: Callable[[str], None] = print,
-            set_name: Optional[str] = None) -> dict:
+            set_name: Optional[str] = None, wait_s: float = 30.0) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -604,6 +871,13 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         cfg_options (dict, optional): Overrides for every config.
         log (callable): Progress printer.
         set_name (str, optional): Name of the built-in set, for the record.
+        wait_s (float): Poll interval while the only runs left are being
+            trained by other processes of the same comparison.
+
+    Several processes may run the same comparison (same ``out_dir``) at
+    once, e.g. one per core with one thread each: each run is locked by
+    the process training it (:class:`RunLock`), the others take the next
+    run and, at the end, wait for the locked ones and read their results.
 
     Returns:
         dict: What ``compare.json`` holds.
@@ -622,27 +896,51 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     # seed-major: a comparison cut short still has every recipe at the
     # seeds it finished
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
-    finished = [osp.isfile(result_file(out_dir, n, s)) for n, _, s in jobs]
     # runs still to train (a test-time variant's test is not counted)
-    left = sum(not done and sources[n] is None
-               for (n, _, _), done in zip(jobs, finished))
-    results, spent, fresh = [], 0.0, 0
-    for k, ((name, config, seed), done) in enumerate(zip(jobs, finished), 1):
-        eta = ''
-        if fresh:
-            eta = f', about {math.ceil(spent / fresh * left / 60)} min left'
-        doing = 'training' if sources[name] is None else \
-            f'testing the weights of {sources[name]!r}'
-        log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
-            f'{"already done" if done else doing}{eta}')
-        start = time.perf_counter()
-        result = run_recipe(name, config, seed, budget, data_root, betas,
-                            out_dir, cfg_options, weights_of=sources[name])
-        if not done and sources[name] is None:
-            spent += time.perf_counter() - start
-            fresh += 1
-            left -= 1
-        results.append(result)
+    left = sum(not osp.isfile(result_file(out_dir, n, s))
+               and sources[n] is None for n, _, s in jobs)
+    results: Dict[int, dict] = {}
+    spent, fresh = 0.0, 0
+    pending = list(enumerate(jobs, 1))
+    while pending:
+        waiting = []
+        for k, (name, config, seed) in pending:
+            path = result_file(out_dir, name, seed)
+            done = osp.isfile(path)
+            lock = None if done else RunLock(osp.dirname(path))
+            if lock is not None and not lock.acquire():
+                # another process of this comparison trains it now
+                waiting.append((k, (name, config, seed)))
+                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
+                    f'being trained by process {lock.holder()}, later')
+                continue
+            eta = ''
+            if fresh:
+                eta = (f', about {math.ceil(spent / fresh * left / 60)} '
+                       'min left')
+            doing = 'training' if sources[name] is None else \
+                f'testing the weights of {sources[name]!r}'
+            log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
+                f'{"already done" if done else doing}{eta}')
+            start = time.perf_counter()
+            if done:
+                results[k] = read_result(path, budget)
+                continue
+            try:
+                results[k] = run_recipe(
+                    name, config, seed, budget, data_root, betas, out_dir,
+                    cfg_options, weights_of=sources[name])
+            finally:
+                lock.release()
+            if sources[name] is None:
+                spent += time.perf_counter() - start
+                fresh += 1
+                left -= 1
+        if waiting and len(waiting) == len(pending):
+            # everything left is in other processes' hands: wait for them
+            time.sleep(wait_s)
+        pending = waiting
+    results = [results[k] for k in sorted(results)]
     summary = summarize(results, betas)
     record = dict(
         set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],

@@ -241,3 +241,178 @@ def test_compare_end_to_end_trained_beats_untrained(
     again = tool.main(with_variant)
     assert 'already done' in capsys.readouterr().out
     assert again['runs'] == trained['runs']
+
+
+def resizes(cfg):
+    found = []
+
+    def walk(node):
+        if isinstance(node, dict):
+            if node.get('type') == 'Resize':
+                found.append(tuple(node['scale']))
+            for v in node.values():
+                walk(v)
+        elif isinstance(node, (list, tuple)):
+            for v in node:
+                walk(v)
+
+    for key in ('train_dataloader', 'test_dataloader'):
+        walk(cfg[key])
+    return found
+
+
+@pytest.mark.parametrize('recipe', [r for s in ('arch', 'ablation')
+                                    for r in rc.resolve_recipes(s)],
+                         ids=lambda r: r[0])
+def test_budget_img_scale_resizes_every_pipeline(recipe, tmp_path):
+    """The bench preset's image size reaches the training and the test
+    pipelines of every recipe, wrapped and paired datasets included."""
+    _, config = recipe
+    cfg = rc.budget_cfg(config, rc.Budget(iters=2, img_scale=(512, 256)),
+                        seed=0, data_root='/d', work_dir=str(tmp_path))
+    found = resizes(cfg)
+    assert len(found) >= 2 and set(found) == {(512, 256)}
+    kept = rc.budget_cfg(config, rc.Budget(iters=2), seed=0,
+                         data_root='/d', work_dir=str(tmp_path))
+    assert set(resizes(kept)) == {(256, 128)}
+
+
+def test_img_scale_without_a_resize_is_an_error():
+    from mmengine.config import Config
+    cfg = Config(dict(
+        train_dataloader=dict(dataset=dict(pipeline=[dict(type='Pad')])),
+        test_dataloader=dict(dataset=dict(pipeline=[
+            dict(type='Resize', scale=(1, 1))]))))
+    with pytest.raises(ValueError, match=r"no Resize .*\['train'\]"):
+        rc.set_img_scale(cfg, (64, 32))
+    with pytest.raises(ValueError, match='must be'):
+        rc.set_img_scale(cfg, (64, 0))
+
+
+def test_a_finished_run_of_another_budget_is_not_mixed_in(tmp_path):
+    path = tmp_path / 'result.json'
+    budget = rc.Budget(iters=300, batch_size=4, img_scale=(512, 256))
+    path.write_text(json.dumps(dict(
+        recipe='a', seed=0, metrics={},
+        budget=json.loads(json.dumps(rc.asdict(budget))))))
+    assert rc.read_result(str(path), budget)['recipe'] == 'a'
+    with pytest.raises(ValueError, match=r"'iters': \(300, 120\)"):
+        rc.read_result(str(path), rc.Budget(iters=120, batch_size=4,
+                                            img_scale=(512, 256)))
+    with pytest.raises(ValueError, match='img_scale'):
+        rc.read_result(str(path), rc.Budget(iters=300, batch_size=4))
+    # records written before img_scale existed read as img_scale None
+    old = rc.asdict(rc.Budget())
+    del old['img_scale']
+    path.write_text(json.dumps(dict(recipe='b', seed=0, budget=old)))
+    assert rc.read_result(str(path), rc.Budget())['recipe'] == 'b'
+
+
+def test_restore_runs_of_a_saved_record(tmp_path):
+    budget = rc.Budget(iters=3)
+    runs = [fake_run('x', 0, 0.2, 0.1), fake_run('x', 1, 0.3, 0.2)]
+    record = tmp_path / 'compare.json'
+    record.write_text(json.dumps(dict(
+        budget=json.loads(json.dumps(rc.asdict(budget))), runs=runs)))
+    out = tmp_path / 'out'
+    assert rc.restore_runs(str(record), str(out), budget) == 2
+    assert rc.read_result(rc.result_file(str(out), 'x', 1),
+                          budget)['metrics'] == runs[1]['metrics']
+    # already there: kept, not rewritten
+    assert rc.restore_runs(str(record), str(out), budget) == 0
+    with pytest.raises(ValueError, match='cannot be mixed in'):
+        rc.restore_runs(str(record), str(tmp_path / 'o2'),
+                        rc.Budget(iters=4))
+
+
+def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
+    import os
+    import platform
+    import subprocess
+    import sys
+    a, b = rc.RunLock(str(tmp_path)), rc.RunLock(str(tmp_path))
+    assert a.acquire()
+    assert not b.acquire()
+    assert b.holder() == f'{platform.node()}:{os.getpid()}'
+    a.release()
+    assert b.acquire()
+    b.release()
+    assert b.holder() is None
+    # a lock left by a process that has exited is stale: taken over
+    dead = subprocess.run([sys.executable, '-c', 'import os; '
+                           'print(os.getpid())'], capture_output=True,
+                          text=True).stdout.strip()
+    (tmp_path / '.lock').write_text(f'{platform.node()}:{dead}')
+    assert a.acquire() and a.holder().endswith(f':{os.getpid()}')
+    a.release()
+    # another host's lock is never taken over from here
+    (tmp_path / '.lock').write_text('elsewhere:1')
+    assert not a.acquire()
+
+
+def test_compare_waits_for_runs_held_by_another_process(tmp_path,
+                                                        monkeypatch):
+    """A run locked by a live process is skipped, then read back once its
+    result appears; nothing is trained twice."""
+    out = str(tmp_path)
+    trained = []
+
+    def fake_run_recipe(name, config, seed, *args, **kwargs):
+        trained.append((name, seed))
+        return fake_run(name, seed, 0.5, 0.4)
+
+    monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
+    monkeypatch.setattr(rc, 'weights_sources',
+                        lambda recipes: {n: None for n, _ in recipes})
+    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    ann = tmp_path / 'data' / 'annotations'
+    ann.mkdir(parents=True)
+    (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
+    other = rc.RunLock(osp.dirname(rc.result_file(out, 'x', 1)))
+    assert other.acquire()  # "another process" trains x, seed 1
+    calls = []
+
+    def finish_other(_):
+        # the other process finishes while we wait
+        calls.append(1)
+        path = rc.result_file(out, 'x', 1)
+        with open(path, 'w') as f:
+            json.dump(fake_run('x', 1, 0.7, 0.6), f)
+        other.release()
+
+    monkeypatch.setattr(rc.time, 'sleep', finish_other)
+    logs = []
+    record = rc.compare([('x', 'x.py')], [0, 1], rc.Budget(iters=1),
+                        str(tmp_path / 'data'), [0.02], out,
+                        log=logs.append)
+    assert trained == [('x', 0)] and calls == [1]
+    assert any('being trained by process' in line for line in logs)
+    assert [r['seed'] for r in record['runs']] == [0, 1]
+    assert record['runs'][1]['metrics']['clear']['coco/segm_mAP'] == 0.7
+
+
+def test_only_keeps_the_named_recipes_in_set_order():
+    got = rc.resolve_recipes('parts', only=['CBNet', 'stock (GELU, OPE)'])
+    assert [n for n, _ in got] == ['stock (GELU, OPE)', 'CBNet']
+    with pytest.raises(ValueError, match=r"no recipe named \['nope'\]"):
+        rc.resolve_recipes('arch', only=['nope'])
+
+
+def test_cli_preset_fills_what_is_not_given():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        'compare_recipes_cli',
+        osp.join(ROOT, 'tools', 'analysis_tools', 'compare_recipes.py'))
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    bench = rc.PRESETS['bench']
+    args = tool.parse_args(['--set', 'parts', '--preset', 'bench'])
+    assert (args.data_root, args.iters, args.batch_size,
+            tuple(args.img_scale)) == (bench.data_root, bench.iters,
+                                       bench.batch_size, bench.img_scale)
+    args = tool.parse_args(['--set', 'arch', '--preset', 'bench',
+                            '--iters', '7', '--img-scale', '64', '32'])
+    assert args.iters == 7 and tuple(args.img_scale) == (64, 32)
+    args = tool.parse_args(['--set', 'arch'])
+    assert args.iters == 120 and args.img_scale is None
+    assert args.data_root == 'data/cityscapes_like'

@@ -40,7 +40,8 @@ from mmengine.config import DictAction
 
 
 def parse_args(argv=None):
-    from cbnet_mmdet.evaluation.recipe_comparison import RECIPE_SETS
+    from cbnet_mmdet.evaluation.recipe_comparison import (PRESETS,
+                                                          RECIPE_SETS)
     parser = argparse.ArgumentParser(
         description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -50,29 +51,53 @@ def parse_args(argv=None):
     parser.add_argument('--configs', nargs='+', default=[],
                         metavar='[NAME=]CONFIG',
                         help='recipes to compare (added after --set)')
-    parser.add_argument('--data-root', default='data/cityscapes_like',
+    parser.add_argument('--only', nargs='+', metavar='NAME',
+                        help='run only these recipes of the set/configs')
+    parser.add_argument('--preset', choices=sorted(PRESETS),
+                        default='demo',
+                        help='data root, budget and image size to start '
+                        'from (the options below override it): ' +
+                        '; '.join(f'{k}: {v.describe()}'
+                                  for k, v in sorted(PRESETS.items())))
+    parser.add_argument('--data-root',
                         help='dataset in the Cityscapes layout with '
-                        'converted annotations and leftImg8bit_foggy')
+                        'converted annotations and leftImg8bit_foggy '
+                        "(default: the preset's)")
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
-    parser.add_argument('--iters', type=int, default=120,
+    parser.add_argument('--iters', type=int,
                         help='training iterations per run (0: untrained)')
-    parser.add_argument('--batch-size', type=int, default=4)
+    parser.add_argument('--batch-size', type=int)
     parser.add_argument('--lr', type=float, default=None,
                         help="base lr (default: each config's)")
-    parser.add_argument('--warmup-iters', type=int, default=30)
+    parser.add_argument('--warmup-iters', type=int)
+    parser.add_argument('--img-scale', type=int, nargs=2,
+                        metavar=('W', 'H'),
+                        help='scale of every Resize in the pipelines '
+                        "(default: the preset's; the demo preset keeps "
+                        "each config's)")
     parser.add_argument('--num-workers', type=int, default=1)
     parser.add_argument('--betas', type=float, nargs='*',
                         default=[0.005, 0.01, 0.02],
                         help='fog densities (1/m) to test on')
     parser.add_argument('--work-dir', default=None,
-                        help='default: work_dirs/compare/<set or custom>')
+                        help='default: work_dirs/compare/<set or custom>, '
+                        'with _<preset> unless the preset is demo')
     parser.add_argument('--threads', type=int, default=None,
                         help='torch intra-op threads (default: torch\'s)')
+    parser.add_argument('--restore', metavar='COMPARE_JSON',
+                        help="a saved comparison's compare.json (e.g. "
+                        'docs/accuracy/parts.json): its runs are written '
+                        'into --work-dir first and not trained again')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='overrides applied to every config')
     args = parser.parse_args(argv)
     if args.set is None and not args.configs:
         parser.error('give --set or --configs')
+    preset = PRESETS[args.preset]
+    for key in ('data_root', 'iters', 'batch_size', 'warmup_iters',
+                'img_scale'):
+        if getattr(args, key) is None:
+            setattr(args, key, getattr(preset, key))
     if args.iters < 0 or args.batch_size < 1 or not args.seeds:
         parser.error('--iters >= 0, --batch-size >= 1 and one seed or more')
     return args
@@ -87,12 +112,18 @@ def main(argv=None) -> dict:
     from cbnet_mmdet.evaluation import recipe_comparison as rc
     if args.threads:
         torch.set_num_threads(args.threads)
-    recipes = rc.resolve_recipes(args.set, args.configs)
-    work_dir = args.work_dir or osp.join('work_dirs', 'compare',
-                                         args.set or 'custom')
+    recipes = rc.resolve_recipes(args.set, args.configs, args.only)
+    name = args.set or 'custom'
+    if args.preset != 'demo':
+        name += f'_{args.preset}'
+    work_dir = args.work_dir or osp.join('work_dirs', 'compare', name)
     budget = rc.Budget(
         iters=args.iters, batch_size=args.batch_size, lr=args.lr,
-        warmup_iters=args.warmup_iters, num_workers=args.num_workers)
+        warmup_iters=args.warmup_iters, num_workers=args.num_workers,
+        img_scale=tuple(args.img_scale) if args.img_scale else None)
+    if args.restore:
+        n = rc.restore_runs(args.restore, work_dir, budget)
+        print(f'restored {n} finished run(s) from {args.restore}')
     record = rc.compare(recipes, args.seeds, budget, args.data_root,
                         args.betas, work_dir, args.cfg_options,
                         set_name=args.set)

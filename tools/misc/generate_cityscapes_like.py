@@ -5,6 +5,10 @@ Usage::
     python tools/misc/generate_cityscapes_like.py data/cityscapes_like \
         [--num-train 40 --num-val 10 --size 256 512 --seed 0] [--convert] \
         [--density 1.0] [--min-height-px 8]
+    # the benchmark of the comparison harness (compare_recipes.py
+    # --preset bench); the options above override a preset's values
+    python tools/misc/generate_cityscapes_like.py \
+        data/cityscapes_like_bench --preset bench --nproc 2 --convert
 
 The layout is Cityscapes' (``leftImg8bit``, ``gtFine``,
 ``leftImg8bit_foggy``, plus ``depth`` in centimetres); ``--convert`` also
@@ -15,40 +19,58 @@ import argparse
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
 from cbnet_mmdet.datasets.synthetic import generate_cityscapes_like
+from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
+
+#: Values without a preset (the generator's own defaults).
+DEFAULTS = dict(num_train=40, num_val=10, img_size=(256, 512), density=1.0,
+                min_height_px=8.0)
 
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(
         description='Generate a seeded Cityscapes-like mini dataset')
     parser.add_argument('out_root', help='output dataset root')
-    parser.add_argument('--num-train', type=int, default=40)
-    parser.add_argument('--num-val', type=int, default=10)
     parser.add_argument(
-        '--size', type=int, nargs=2, default=[256, 512],
-        metavar=('H', 'W'), help='image height and width, pixels')
+        '--preset', choices=sorted(DATA_PRESETS),
+        help='a named dataset: ' + '; '.join(
+            f'{k}: {v}' for k, v in sorted(DATA_PRESETS.items())))
+    parser.add_argument('--num-train', type=int,
+                        help=f"default {DEFAULTS['num_train']}")
+    parser.add_argument('--num-val', type=int,
+                        help=f"default {DEFAULTS['num_val']}")
+    parser.add_argument(
+        '--size', type=int, nargs=2, metavar=('H', 'W'),
+        help='image height and width, pixels (default 256 512)')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument(
         '--betas', type=float, nargs='+', default=list(FOGGY_BETAS),
         help='fog attenuation coefficients, 1/m')
     parser.add_argument('--nproc', type=int, default=1)
     parser.add_argument(
-        '--density', type=float, default=1.0,
-        help='scale of the mean object counts per image (1: about 20 '
-        'instances, as Cityscapes)')
+        '--density', type=float,
+        help='scale of the mean object counts per image (default 1: about '
+        '20 instances, as Cityscapes)')
     parser.add_argument(
-        '--min-height-px', type=float, default=8.0,
-        help='objects shorter than this (pixels) are not drawn')
+        '--min-height-px', type=float,
+        help='objects shorter than this (pixels) are not drawn (default 8)')
     parser.add_argument(
         '--convert', action='store_true',
         help='also write annotations/instancesonly_filtered_gtFine_*.json')
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    values = dict(DEFAULTS, **DATA_PRESETS.get(args.preset, {}))
+    if args.size is not None:
+        args.img_size = tuple(args.size)
+    for key, value in values.items():
+        if getattr(args, key, None) is None:
+            setattr(args, key, value)
+    return args
 
 
 def main(argv=None):
     args = parse_args(argv)
     records = generate_cityscapes_like(
         args.out_root, num_train=args.num_train, num_val=args.num_val,
-        img_size=tuple(args.size), seed=args.seed, betas=args.betas,
+        img_size=tuple(args.img_size), seed=args.seed, betas=args.betas,
         nproc=args.nproc, density=args.density,
         min_height_px=args.min_height_px)
     for split, recs in records.items():
