@@ -7,6 +7,7 @@ CKPT)`` alone (config from the checkpoint) predicts with it. ``--resume``
 restores the message hub exactly.
 """
 import glob
+import importlib.util
 import os
 import os.path as osp
 import subprocess
@@ -17,11 +18,8 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.logging.history_buffer import HistoryBuffer
-from mmengine.model import BaseModel
 from mmengine.registry import init_default_scope
 from mmengine.runner import Runner
-from torch import nn
-from torch.utils.data import Dataset
 
 import cbnet_mmdet  # noqa: F401
 from cbnet_mmdet.engine.hooks.weights_only_checkpoint_hook import (
@@ -34,24 +32,19 @@ DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 
 
-class _ToyModel(BaseModel):
+def _toy_module():
+    """tests/test_utils/test_checkpoint_safe_globals.py (its toy model and
+    data), loaded by path: the tests are not a package."""
+    spec = importlib.util.spec_from_file_location(
+        'cbnet_weights_only_toys',
+        osp.join(ROOT, 'tests', 'test_utils',
+                 'test_checkpoint_safe_globals.py'))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
-    def __init__(self):
-        super().__init__()
-        self.fc = nn.Linear(2, 1)
 
-    def forward(self, inputs, data_samples=None, mode='tensor'):
-        out = self.fc(inputs)
-        return dict(loss=out.pow(2).mean()) if mode == 'loss' else out
-
-
-class _ToyData(Dataset):
-
-    def __len__(self):
-        return 8
-
-    def __getitem__(self, i):
-        return dict(inputs=torch.full((2, ), float(i)))
+_TOYS = _toy_module()
 
 
 def _runner(work_dir, max_epochs, resume=False):
@@ -60,10 +53,10 @@ def _runner(work_dir, max_epochs, resume=False):
     hooks.checkpoint.update(save_best=None, max_keep_ckpts=-1)
     init_default_scope('mmdet')
     return Runner(
-        model=_ToyModel(),
+        model=_TOYS._ToyModel(),
         work_dir=str(work_dir),
         train_dataloader=dict(
-            dataset=_ToyData(),
+            dataset=_TOYS._ToyData(),
             sampler=dict(type='DefaultSampler', shuffle=True),
             batch_size=2,
             collate_fn=dict(type='default_collate')),
