@@ -12,6 +12,10 @@ from .utils.checkpoint_safe_globals import allow_mmengine_checkpoints  # noqa: E
 
 allow_mmengine_checkpoints()
 
+from .utils.checkpoint_file import use_checked_local_loader  # noqa: E402,E501,isort:skip
+
+use_checked_local_loader()  # a PNG passed as checkpoint: a clear error
+
 from . import datasets, engine, evaluation, models  # noqa: E402,F401,E501,isort:skip
 
 __all__ = ['__version__']

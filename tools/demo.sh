@@ -54,7 +54,7 @@ step "4/5 evaluating $CKPT on clear and foggy val (beta 0.01, 0.02)"
 python tools/analysis_tools/ap_drop.py "$CONFIG" "$CKPT" \
   --betas 0.01 0.02 --out-dir "$WORK/ap_drop"
 
-step "5/5 drawing predictions (clear | beta 0.01 | beta 0.02)"
+step "5/5 drawing predictions (clear | beta 0.01 | beta 0.02) from the score the evaluation paints masks from (printed)"
 python tools/misc/draw_predictions.py "$CONFIG" "$CKPT" \
   $(ls "$DATA"/leftImg8bit/val/*/*_leftImg8bit.png | head -n 2) \
   --betas 0.01 0.02 --out "$WORK/predictions.png"

@@ -7,8 +7,9 @@
 # What it pins and why:
 #   torch 2.13.0      the CPU wheel here (TORCH_SPEC to override, e.g. a CUDA
 #                     build on a GPU machine)
-#   mmcv 2.1.0        compiled from source WITH ops (about 10 minutes on two
-#                     cores; CUDA ops when nvcc and a CUDA torch are present).
+#   mmcv 2.1.0        compiled from source WITH ops (11 minutes on an idle
+#                     2-core machine, 17 under load: docs/install.md; CUDA
+#                     ops when nvcc and a CUDA torch are present).
 #                     pip caches the built wheel, so a second environment on
 #                     the same machine reuses it.
 #   mmengine 0.10.7, mmdet 3.3.0
@@ -92,7 +93,7 @@ else
   if command -v nvcc >/dev/null && python -c 'import torch,sys; sys.exit(not torch.version.cuda)'; then
     FORCE_CUDA=1
   fi
-  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA); ~10 min on 2 cores unless pip has it cached"
+  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA); 11-17 min on 2 cores unless pip has it cached"
   log=$(mktemp)
   MMCV_WITH_OPS=1 FORCE_CUDA=$FORCE_CUDA MAX_JOBS=${MAX_JOBS:-$(nproc)} \
     python -m pip install -v --no-build-isolation "$MMCV_SPEC" >"$log" 2>&1 &

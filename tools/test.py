@@ -19,6 +19,7 @@ from mmengine.registry import RUNNERS
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.utils.checkpoint_fit import require_checkpoint_fit
 from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
                                                use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
@@ -63,6 +64,9 @@ def build_cfg(args) -> Config:
         cfg.work_dir = osp.join('./work_dirs',
                                 osp.splitext(osp.basename(args.config))[0])
     cfg.load_from = args.checkpoint
+    # a checkpoint that does not fill the model is refused, not evaluated
+    # with random weights where it does not fit
+    require_checkpoint_fit(cfg)
     if args.show_dir:
         vis = cfg.default_hooks.get('visualization')
         if vis is None:

@@ -6,6 +6,7 @@ Apache-2.0): same arguments and runner set-up.
 Usage::
 
     python tools/train.py CONFIG [--work-dir DIR] [--resume [CKPT]] [--amp]
+                         [--tensorboard]
     bash tools/dist_train.sh CONFIG NUM_GPUS [...]   # torch.distributed
     mim train cbnet_mmdet CONFIG [...]               # from an installed wheel
 """
@@ -41,6 +42,11 @@ def parse_args(argv=None):
         const='auto',
         help='resume from CKPT, or from the latest checkpoint in the work '
         'dir when no path is given')
+    parser.add_argument(
+        '--tensorboard',
+        action='store_true',
+        help='also write the logged scalars for TensorBoard (adds '
+        'MMEngine\'s TensorboardVisBackend to visualizer.vis_backends)')
     parser.add_argument(
         '--cfg-options',
         nargs='+',
@@ -78,6 +84,8 @@ def build_cfg(args) -> Config:
             raise KeyError('--auto-scale-lr needs `auto_scale_lr = dict('
                            'base_batch_size=...)` in the config')
         cfg.auto_scale_lr.enable = True
+    if args.tensorboard:
+        add_tensorboard_backend(cfg)
     if args.resume == 'auto':
         cfg.resume = True
         cfg.load_from = None
@@ -89,6 +97,21 @@ def build_cfg(args) -> Config:
     if args.launcher != 'none' and not torch.cuda.is_available():
         use_gloo_on_cpu(cfg)
     return cfg
+
+
+def add_tensorboard_backend(cfg: Config) -> None:
+    """Append ``TensorboardVisBackend`` to ``cfg.visualizer.vis_backends``
+    (a list of dicts, which ``--cfg-options`` cannot pass), unless it is
+    there already."""
+    visualizer = cfg.get('visualizer')
+    if visualizer is None:
+        raise KeyError('--tensorboard needs a `visualizer` in the config')
+    backends = list(visualizer.get('vis_backends') or [])
+    if not any(b.get('type') in ('TensorboardVisBackend',
+                                 'mmengine.TensorboardVisBackend')
+               for b in backends):
+        backends.append(dict(type='TensorboardVisBackend'))
+    visualizer.vis_backends = backends
 
 
 def main(argv=None):

@@ -12,6 +12,8 @@ from typing import Dict, List, Optional, Sequence
 from mmengine.config import Config
 from mmengine.runner import Runner
 
+from ..utils.checkpoint_fit import require_checkpoint_fit
+
 CLEAR_TYPES = ('CityscapesDataset', 'CBNetCityscapesDataset')
 FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'
 
@@ -91,6 +93,7 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
     """
     cfg = copy.deepcopy(cfg)
     cfg.load_from = checkpoint
+    require_checkpoint_fit(cfg)  # refuse a checkpoint of another model
     cfg.work_dir = osp.join(work_dir, name)
     # unique per run and condition: MMEngine keys its logger and message
     # hub by this name, and a process may test several checkpoints

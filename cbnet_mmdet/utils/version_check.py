@@ -11,7 +11,13 @@ from packaging.requirements import Requirement
 from packaging.version import Version
 
 #: Distributions whose versions must be inside the declared ranges.
-CHECKED = ('mmcv', 'mmdet', 'mmengine')
+CHECKED = ('mmcv', 'mmdet', 'mmengine', 'setuptools')
+#: Why a range matters, where the reason is not obvious.
+WHY = {
+    'setuptools': "MMEngine resolves our configs' `mmdet::` bases with "
+    'pkg_resources, which setuptools 81 removed; pip install '
+    '"setuptools<81"'
+}
 
 
 def declared_ranges(dist: str = 'cbnet_mmdet') -> Dict[str, Requirement]:
@@ -53,7 +59,8 @@ def check_versions(ranges: Optional[Dict[str, Requirement]] = None,
         if found is None:
             problems.append(f'{name} is not installed (need {req})')
         elif not req.specifier.contains(Version(found), prereleases=True):
-            problems.append(f'{name}=={found} is installed, need {req}')
+            problems.append(f'{name}=={found} is installed, need {req}' +
+                            (f' ({WHY[name]})' if name in WHY else ''))
     if problems:
         raise ImportError(
             'cbnet_mmdet cannot run with this OpenMMLab stack:\n  - ' +

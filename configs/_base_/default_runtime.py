@@ -17,4 +17,7 @@ default_hooks = dict(
     # stop at the first NaN/Inf loss, naming iteration, loss and images
     non_finite=dict(type='CBNetNonFiniteLossHook'),
     # log what a load_from/resume checkpoint did not fill
-    checkpoint_report=dict(type='CBNetCheckpointReportHook'))
+    checkpoint_report=dict(type='CBNetCheckpointReportHook'),
+    # checkpoints that torch.load's default weights_only reads without
+    # cbnet_mmdet imported (DetInferencer(weights=CKPT) alone)
+    weights_only=dict(type='CBNetWeightsOnlyCheckpointHook'))

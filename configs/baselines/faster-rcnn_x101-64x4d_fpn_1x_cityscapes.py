@@ -8,6 +8,10 @@
 _base_ = 'mmdet::cityscapes/faster-rcnn_r50_fpn_1x_cityscapes.py'
 
 custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
+# checkpoints that torch.load's default weights_only reads without
+# cbnet_mmdet imported (DetInferencer(weights=CKPT) alone)
+default_hooks = dict(
+    weights_only=dict(type='CBNetWeightsOnlyCheckpointHook'))
 
 data_root = 'data/cityscapes/'
 dataset_type = 'CBNetCityscapesDataset'
@@ -41,7 +45,10 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='LoadImageFromFile'),
+    # the backend names an empty or missing file; MMDet's inference API
+    # keeps these arguments for the loaders it puts in this one's place
+    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
+    dict(type='CBNetCheckImage'),  # H x W x 3, else an error naming it
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True),
     dict(

@@ -15,6 +15,10 @@
 _base_ = 'mmdet::yolox/yolox_s_8xb8-300e_coco.py'
 
 custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
+# checkpoints that torch.load's default weights_only reads without
+# cbnet_mmdet imported (DetInferencer(weights=CKPT) alone)
+default_hooks = dict(
+    weights_only=dict(type='CBNetWeightsOnlyCheckpointHook'))
 
 img_scale = (1024, 1024)  # width, height; see (1)
 dataset_type = 'CBNetCityscapesDataset'
@@ -56,7 +60,10 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='LoadImageFromFile'),
+    # the backend names an empty or missing file; MMDet's inference API
+    # keeps these arguments for the loaders it puts in this one's place
+    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
+    dict(type='CBNetCheckImage'),  # H x W x 3, else an error naming it
     dict(type='Resize', scale=img_scale, keep_ratio=True),
     dict(
         type='Pad',

@@ -101,8 +101,16 @@ def _assert_same(pred, ref):
                          ids=[osp.relpath(p, ROOT) for p in SHIPPED])
 def test_inferencer_accepts_every_shipped_test_pipeline(path, demo):
     """DetInferencer finds the loader in every config and its pipeline
-    turns an image path into model inputs."""
+    turns an image path into model inputs. The loader reads through the
+    checking file backend and CBNetCheckImage follows it (issue 26:
+    tests/test_datasets/test_transforms/test_check_image.py)."""
     cfg = Config.fromfile(path)
+    config_pipeline = cfg.test_dataloader.dataset.pipeline
+    types = [t['type'] for t in config_pipeline]
+    load = types.index('LoadImageFromFile')
+    assert config_pipeline[load].get('backend_args') == dict(
+        backend='cbnet_image')
+    assert types[load + 1] == 'CBNetCheckImage', types
     init_default_scope('mmdet')
     inferencer = DetInferencer.__new__(DetInferencer)
     pipeline = inferencer._init_pipeline(cfg)
@@ -195,8 +203,8 @@ def test_det_inferencer_on_a_paper_config(demo, tmp_path):
     cfg = Config.fromfile(
         osp.join(ROOT, 'configs', 'cbnet',
                  'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes.py'))
-    resize = cfg.test_dataloader.dataset.pipeline[1]
-    assert resize.type == 'Resize'
+    (resize, ) = [t for t in cfg.test_dataloader.dataset.pipeline
+                  if t.type == 'Resize']
     resize.scale = (256, 128)  # CPU: 8x smaller than the paper's 2048x1024
     inferencer = DetInferencer(model=cfg, weights=None, device='cpu',
                                show_progress=False)

@@ -4,19 +4,44 @@ import glob
 import os.path as osp
 
 import cv2
+from mmengine.config import Config
 
 from tool_helpers import DEMO, demo_checkpoint, load_tool
 
 
-def test_clear_and_foggy_panels(cityscapes_like_root, tmp_path):
+def test_clear_and_foggy_panels(cityscapes_like_root, tmp_path, capsys):
     ckpt = demo_checkpoint(str(tmp_path / 'demo.pth'))
     image = sorted(glob.glob(osp.join(
         cityscapes_like_root, 'leftImg8bit', 'val', '*', '*.png')))[0]
     out = str(tmp_path / 'pred.png')
     load_tool('misc/draw_predictions.py').main(
         [DEMO, ckpt, image, '--betas', '0.02', '--out', out])
+    thr, _ = load_tool('misc/draw_predictions.py').evaluation_score_thr(
+        Config.fromfile(DEMO))
+    assert f'drawing predictions scoring >= {thr} (the score_thr of its ' \
+        'CBNetInstanceMIoUMetric)' in capsys.readouterr().out
     drawn = cv2.imread(out)
     h, w = cv2.imread(image).shape[:2]
     assert drawn.shape == (h, 2 * w, 3)  # clear | foggy, one scene
     # the two panels show different pictures (the foggy twin is hazier)
     assert not (drawn[:, :w] == drawn[:, w:]).all()
+
+
+def test_threshold_is_the_evaluations(capsys):
+    """Drawn from the score the config's mIoU evaluation paints masks from
+    (not MMDet's 0.3, where a short-trained demo model shows nothing), as
+    the README says."""
+    tool = load_tool('misc/draw_predictions.py')
+    cfg = Config.fromfile(DEMO)
+    (miou, ) = [e for e in cfg.test_evaluator
+                if e['type'] == 'CBNetInstanceMIoUMetric']
+    thr, source = tool.evaluation_score_thr(cfg)
+    assert thr == miou['score_thr'] and 'CBNetInstanceMIoUMetric' in source
+    assert tool.parse_args([DEMO, 'c.pth', 'i.png', '--out',
+                            'o.png']).score_thr is None
+    with open(osp.join(osp.dirname(DEMO), '..', '..', 'README.md')) as f:
+        readme = ' '.join(f.read().split())
+    assert f'(clear | beta 0.01 | beta 0.02) from score {thr},' in readme
+    # a config without the metric: MMDet's default, said so
+    assert tool.evaluation_score_thr(Config(dict(test_evaluator=dict(
+        type='CocoMetric')))) == (0.3, "MMDetection's default")

@@ -34,10 +34,23 @@ def test_prerelease_inside_range_accepted():
 
 def test_declared_ranges_come_from_installed_metadata():
     ranges = declared_ranges()
-    # the installed cbnet_mmdet declares all three (requirements/runtime.txt)
-    assert set(ranges) == {'mmcv', 'mmdet', 'mmengine'}
+    # the installed cbnet_mmdet declares all four (requirements/runtime.txt)
+    assert set(ranges) == {'mmcv', 'mmdet', 'mmengine', 'setuptools'}
     assert ranges['mmcv'].specifier.contains('2.1.0')
     assert not ranges['mmcv'].specifier.contains('2.2.0')
+    # setuptools at run time: our configs' `mmdet::` bases need
+    # pkg_resources, which setuptools 81 removed (issue 26)
+    assert ranges['setuptools'].specifier.contains('80.10.2')
+    assert not ranges['setuptools'].specifier.contains('81.0.0')
+
+
+def test_setuptools_81_named_with_the_reason():
+    ranges = declared_ranges()
+    with pytest.raises(ImportError, match=r'setuptools==81.0.0 is installed'
+                       r', need setuptools<81 \(.*pkg_resources'):
+        check_versions(ranges, {'mmcv': '2.1.0', 'mmdet': '3.3.0',
+                                'mmengine': '0.10.7',
+                                'setuptools': '81.0.0'})
 
 
 def test_unknown_distribution_checks_nothing():

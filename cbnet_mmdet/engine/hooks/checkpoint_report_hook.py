@@ -1,53 +1,20 @@
 """Log (and refuse) checkpoints whose weights do not fit the model."""
-from typing import Dict, List, Tuple
+from typing import List, Tuple
 
 from mmdet.registry import HOOKS
 from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
 
-#: Names listed per category in the log (counts are always given).
-MAX_LISTED = 10
+from cbnet_mmdet.utils.checkpoint_fit import (MAX_LISTED,
+                                              check_checkpoint_fits,
+                                              compare_state_dicts, listed,
+                                              misfit_message)
 
-
-def compare_state_dicts(
-        model_state: Dict, ckpt_state: Dict) -> Dict[str, List[str]]:
-    """What of a checkpoint loads into a model, by name and shape.
-
-    Args:
-        model_state (dict[str, Tensor]): ``model.state_dict()``.
-        ckpt_state (dict[str, Tensor]): The checkpoint's weights (a
-            ``module.`` prefix, as DDP writes it, is ignored).
-
-    Returns:
-        dict[str, list[str]]: ``loaded``, ``missing`` (in the model, not
-        in the checkpoint; BN ``num_batches_tracked`` ignored),
-        ``unexpected`` (in the checkpoint only) and ``mismatched``
-        (``'name: checkpoint (shape) vs model (shape)'``).
-    """
-    ckpt = {(k[len('module.'):] if k.startswith('module.') else k): v
-            for k, v in ckpt_state.items()}
-    shape = lambda v: tuple(getattr(v, 'shape', ()))  # noqa: E731
-    common = [k for k in model_state if k in ckpt]
-    mismatched = [
-        f'{k}: checkpoint {shape(ckpt[k])} vs model {shape(model_state[k])}'
-        for k in common if shape(ckpt[k]) != shape(model_state[k])
-    ]
-    bad = {m.split(':')[0] for m in mismatched}
-    return dict(
-        loaded=[k for k in common if k not in bad],
-        missing=[
-            k for k in model_state
-            if k not in ckpt and not k.endswith('num_batches_tracked')
-        ],
-        unexpected=[k for k in ckpt if k not in model_state],
-        mismatched=mismatched)
-
-
-def _listed(names: List[str]) -> str:
-    more = len(names) - MAX_LISTED
-    return ', '.join(names[:MAX_LISTED]) + (f' ... (+{more})'
-                                            if more > 0 else '')
+#: The helpers that moved to :mod:`cbnet_mmdet.utils.checkpoint_fit`, under
+#: the names other modules import from here.
+__all__ = ['CBNetCheckpointReportHook', 'MAX_LISTED', 'compare_state_dicts']
+_listed = listed
 
 
 @HOOKS.register_module()
@@ -64,15 +31,27 @@ class CBNetCheckpointReportHook(Hook):
     architecture) raises ``ValueError`` naming it, instead of training from
     scratch without notice.
 
+    With ``require_fit=True`` (``tools/test.py`` and the other tools that
+    evaluate a checkpoint) every model tensor must be in the checkpoint
+    with its shape: a partial fit raises
+    :class:`~cbnet_mmdet.utils.checkpoint_fit.CheckpointMismatchError`
+    saying what does not fit and what to do (extract the student of a
+    CBNet-DD checkpoint, use the checkpoint's own config).
+
     Args:
         allow_no_match (bool): Only warn when no tensor fits. Defaults to
             False.
+        require_fit (bool): Refuse a checkpoint that does not fill the
+            whole model (for evaluation; training's ``load_from`` may
+            fine-tune from a partial fit). Defaults to False.
     """
 
     priority = 'VERY_HIGH'
 
-    def __init__(self, allow_no_match: bool = False) -> None:
+    def __init__(self, allow_no_match: bool = False,
+                 require_fit: bool = False) -> None:
         self.allow_no_match = allow_no_match
+        self.require_fit = require_fit
 
     def after_load_checkpoint(self, runner: Runner, checkpoint: dict) -> None:
         """Compare ``checkpoint['state_dict']`` with the model and log.
@@ -85,7 +64,11 @@ class CBNetCheckpointReportHook(Hook):
             else runner.model
         state = checkpoint.get('state_dict', checkpoint)
         name = getattr(runner, '_load_from', None) or 'the checkpoint'
-        report = compare_state_dicts(model.state_dict(), state)
+        model_state = model.state_dict()
+        if self.require_fit:
+            check_checkpoint_fits(model_state, state, name,
+                                  type(model).__name__)
+        report = compare_state_dicts(model_state, state)
         total = len(report['loaded']) + len(report['missing']) + len(
             report['mismatched'])
         runner.logger.info(
@@ -104,7 +87,7 @@ class CBNetCheckpointReportHook(Hook):
             raise ValueError(
                 f'no tensor of {name} fits the model '
                 f'({type(model).__name__}); is it a checkpoint of this '
-                f'architecture? (missing {len(report["missing"])}, '
-                f'unexpected {len(report["unexpected"])}, shape mismatches '
-                f'{len(report["mismatched"])}; set allow_no_match=True in '
-                f'CBNetCheckpointReportHook to train anyway)')
+                f'architecture? (set allow_no_match=True in '
+                f'CBNetCheckpointReportHook to train anyway)\n' +
+                misfit_message(report, name, type(model).__name__,
+                               list(state)))

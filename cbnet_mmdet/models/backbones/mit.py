@@ -16,6 +16,7 @@ from mmengine.runner.checkpoint import CheckpointLoader, load_state_dict
 from torch import Tensor
 from torch.nn.modules.batchnorm import _BatchNorm
 
+from ...utils.checkpoint_fit import StrictCheckpointFitMixin
 from ..layers import CBNetMish  # noqa: F401  (registers 'CBNetMish')
 from .mit_checkpoint import convert_mit_checkpoint
 from .mit_layers import MiTEncoderLayer
@@ -28,7 +29,7 @@ if 'Mish' not in MMENGINE_MODELS.module_dict:
 
 
 @MODELS.register_module()
-class CBNetMiT(BaseModule):
+class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
     """Mix Vision Transformer with Mish and CSPE (CBNet, section II.A).
 
     SegFormer's MiT encoder (Xie et al., 2021): four stages, each an

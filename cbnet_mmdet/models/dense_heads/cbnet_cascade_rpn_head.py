@@ -7,6 +7,8 @@ from mmdet.registry import MODELS
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.config import ConfigDict
 
+from ...utils.checkpoint_fit import StrictCheckpointFitMixin
+
 # Stage 1 (anchor refinement) assigns by the anchor-centre region of each
 # ground truth, without sampling; stage 2 (proposal refinement) by IoU with
 # the stage-1 boxes. Stage 2 keeps every anchor (no sampler): the sigmoid
@@ -44,7 +46,8 @@ DEFAULT_TEST_CFG = dict(
 
 
 @MODELS.register_module()
-class CBNetCascadeRPNHead(CascadeRPNHead):
+class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
+                          CascadeRPNHead):
     """Cascade RPN with the CBNet training objective (paper (2), (3)).
 
     Two ``StageCascadeRPNHead`` stages (Vu et al. 2019) on a pyramid:

@@ -27,7 +27,10 @@ train_pipeline = [
     dict(type='PackDetInputs')
 ]
 test_pipeline = [
-    dict(type='LoadImageFromFile', backend_args=backend_args),
+    # the backend names an empty or missing file; MMDet's inference API
+    # keeps these arguments for the loaders it puts in this one's place
+    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
+    dict(type='CBNetCheckImage'),  # H x W x 3, else an error naming it
     # full resolution
     dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),

@@ -1,0 +1,53 @@
+"""Refuse, naming the input, an image the model cannot take."""
+from typing import Optional
+
+import numpy as np
+from mmcv.transforms import BaseTransform
+from mmdet.registry import TRANSFORMS
+
+
+@TRANSFORMS.register_module()
+class CBNetCheckImage(BaseTransform):
+    """Check ``results['img']`` right after the image is loaded.
+
+    MMDetection's inference API (``DetInferencer``, ``inference_detector``)
+    replaces the configs' ``LoadImageFromFile`` with its own loaders, which
+    take file paths and arrays as they come: a 2-D (grey) array passes
+    them and fails later with an ``IndexError`` inside MMEngine's data
+    preprocessor. Placed after the loader in our test pipelines, this
+    transform raises a ``ValueError`` naming the file (or the array's
+    shape) and the fix instead. It changes nothing.
+
+    Args:
+        channels (int): Channels the model takes. Defaults to 3 (BGR).
+    """
+
+    def __init__(self, channels: int = 3) -> None:
+        self.channels = channels
+
+    def transform(self, results: dict) -> Optional[dict]:
+        """Return ``results`` unchanged when its image fits.
+
+        Raises:
+            ValueError: no image, an empty one, or not ``H x W x
+                channels``.
+        """
+        img = results.get('img')
+        name = results.get('img_path') or 'the input array'
+        if not isinstance(img, np.ndarray):
+            raise ValueError(f'no image was loaded from {name} (got '
+                             f'{type(img).__name__})')
+        if img.ndim != 3 or img.shape[2] != self.channels:
+            raise ValueError(
+                f'{name}: the image has shape {tuple(img.shape)} but the '
+                f'model takes H x W x {self.channels} images (BGR, as '
+                f'cv2.imread / mmcv.imread return them); convert a grey '
+                f'H x W array with cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) '
+                f'and an RGBA one with cv2.COLOR_RGBA2BGR')
+        if img.shape[0] == 0 or img.shape[1] == 0:
+            raise ValueError(f'{name}: the image is empty (shape '
+                             f'{tuple(img.shape)})')
+        return results
+
+    def __repr__(self) -> str:
+        return f'{type(self).__name__}(channels={self.channels})'

@@ -1,0 +1,345 @@
+"""The docs' own commands, snippets and file references (issue 26).
+
+* every repository file a doc cites (in backticks or as a link) exists in
+  the repository: no doc points outside it or at a file we do not ship;
+* every documented ``python tools/...`` command line is accepted by that
+  tool's argument parser, and the ``tools/train.py`` ones build their
+  config and visualiser (the TensorBoard command of
+  docs/visualization.md once passed its backends as strings);
+* the README's "single components" snippet builds under MMDetection's
+  stock Mask R-CNN through ``_base_`` inheritance, as a user would use it.
+"""
+import glob
+import importlib.util
+import inspect
+import os.path as osp
+import re
+import shlex
+import sys
+
+import pytest
+import torch
+from mmengine.config import Config
+from mmengine.registry import init_default_scope
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+DOCS = [osp.join(ROOT, 'README.md')] + sorted(
+    glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True))
+#: Top-level folders of the repository a citation may start with.
+REPO_DIRS = ('cbnet_mmdet/', 'configs/', 'tools/', 'tests/', 'docs/',
+             'requirements/', '.ci/')
+#: What the README snippet must be built on.
+STOCK_MASK_RCNN = 'mmdet::mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py'
+
+
+def _tool_helpers():
+    path = osp.join(ROOT, 'tests', 'test_tools', 'tool_helpers.py')
+    spec = importlib.util.spec_from_file_location('cbnet_doc_tool_helpers',
+                                                  path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+load_tool = _tool_helpers().load_tool
+
+
+def _read(path):
+    with open(path, encoding='utf-8') as f:
+        return f.read()
+
+
+def _rel(path):
+    return osp.relpath(path, ROOT)
+
+
+def _expand_braces(pattern):
+    """``a{0..2}b`` / ``a{x,y}b`` -> every expansion (shell-like)."""
+    match = re.search(r'\{([^{}]*)\}', pattern)
+    if match is None:
+        return [pattern]
+    body = match.group(1)
+    span = re.fullmatch(r'(\d+)\.\.(\d+)', body)
+    items = ([str(i) for i in range(int(span[1]), int(span[2]) + 1)]
+             if span else body.split(','))
+    out = []
+    for item in items:
+        out += _expand_braces(pattern[:match.start()] + item +
+                              pattern[match.end():])
+    return out
+
+
+def cited_paths(doc):
+    """(citation, paths it names) for each file path the doc cites.
+
+    Citations are backticked words and link targets that start with a
+    repository folder (``configs/``, ``tools/`` ...), with ``papers/`` or
+    are absolute; link targets are relative to the doc. Placeholders
+    (``<...>``, ``...``) are skipped; ``{a,b}``/``{0..5}`` and ``*`` are
+    expanded.
+    """
+    text = _read(doc)
+    doc_dir = osp.dirname(doc)
+    candidates = []
+    for code in re.findall(r'`([^`\n]+)`', text):
+        word = code.split()[0] if code.split() else ''
+        candidates.append((code, word, ROOT, False))
+    for target in re.findall(r'\]\(([^)\s]+)\)', text):
+        if '://' in target or target.startswith(('#', 'mailto:')):
+            continue
+        candidates.append((target, target.split('#')[0], doc_dir, True))
+    for citation, word, base, link in candidates:
+        word = word.split('::')[0].rstrip('.,;:)')
+        in_repo = link or word.startswith(REPO_DIRS)
+        outside = word.startswith(('/', 'papers/', '~'))
+        if not (in_repo or outside) or not word:
+            continue
+        if '<' in word or '...' in word or '$' in word:
+            continue
+        paths = []
+        for expanded in _expand_braces(word):
+            full = osp.normpath(osp.join(base, expanded))
+            paths.append(full)
+        yield citation, paths
+
+
+def _exists(path):
+    return bool(glob.glob(path)) if '*' in path else osp.exists(path)
+
+
+@pytest.mark.parametrize('doc', DOCS, ids=_rel)
+def test_cited_files_exist_in_the_repository(doc):
+    bad = []
+    for citation, paths in cited_paths(doc):
+        for path in paths:
+            inside = (path + '/').startswith(ROOT + '/')
+            if not inside or not _exists(path):
+                bad.append(f'`{citation}` -> {path}' +
+                           ('' if inside else ' (outside the repository)'))
+    assert not bad, f'{_rel(doc)} cites files the repository lacks:\n' + \
+        '\n'.join(bad)
+
+
+def test_the_citation_scanner_sees_outside_and_missing_files(tmp_path):
+    """The scanner itself: an outside path, a missing repository file and
+    a missing link are reported; existing ones are not."""
+    doc = tmp_path / 'doc.md'
+    doc.write_text('see `/work/shared/papers/x.txt`, `papers/y.txt`, '
+                   '`tools/train.py`, `configs/nope.py`, '
+                   '`configs/cbnet/cbnet_mit-b{0..1}_nasfpn-crpn_8xb1-12e'
+                   '_cityscapes.py` and [a](missing.png)\n')
+    found = {c: p for c, p in cited_paths(str(doc))}
+    assert set(found) == {
+        '/work/shared/papers/x.txt', 'papers/y.txt', 'tools/train.py',
+        'configs/nope.py', 'missing.png',
+        'configs/cbnet/cbnet_mit-b{0..1}_nasfpn-crpn_8xb1-12e_cityscapes.py'
+    }
+    assert len(found['configs/cbnet/cbnet_mit-b{0..1}_nasfpn-crpn_8xb1-12e'
+                     '_cityscapes.py']) == 2
+    assert not _exists(found['configs/nope.py'][0])
+    assert _exists(found['tools/train.py'][0])
+
+
+def bash_blocks(doc):
+    """The fenced ``bash``/``shell``/``sh`` blocks of a markdown file."""
+    return re.findall(r'```(?:bash|shell|sh)\n(.*?)```', _read(doc),
+                      flags=re.S)
+
+
+#: Placeholders of documented command lines that a parser checks.
+PLACEHOLDERS = {
+    'H': '64', 'W': '128',
+    'CONFIG': osp.join(ROOT, 'configs', 'demo',
+                       'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+}
+
+
+def tool_commands():
+    """(doc, tool path under tools/, argv) of every documented
+    ``python tools/X.py ...`` command. Optional parts written ``[...]``
+    are included, without their brackets; of alternatives ``a|b`` the
+    first; loop variables and :data:`PLACEHOLDERS` get a value."""
+    out = []
+    for doc in DOCS:
+        for block in bash_blocks(doc):
+            # a loop variable stands for the loop's first value
+            for var, values in re.findall(r'for (\w+) in ([^;\n]+); do',
+                                          block):
+                block = block.replace(f'${var}', values.split()[0])
+            for line in block.replace('\\\n', ' ').splitlines():
+                try:
+                    words = shlex.split(line, comments=True)
+                except ValueError:
+                    continue
+                for i, word in enumerate(words[:-1]):
+                    if word in ('python', 'python3') and \
+                            words[i + 1].startswith('tools/') and \
+                            words[i + 1].endswith('.py'):
+                        argv = []
+                        for arg in words[i + 2:]:
+                            if arg in ('&&', '|', ';', '>'):
+                                break
+                            # `a|b`: one of the alternatives
+                            arg = arg.strip('[]').split('|')[0]
+                            arg = PLACEHOLDERS.get(arg, arg)
+                            if arg and arg != '...':
+                                argv.append(arg)
+                        out.append((_rel(doc), words[i + 1][len('tools/'):],
+                                    argv))
+    return out
+
+
+COMMANDS = tool_commands()
+
+
+def test_docs_document_tool_commands():
+    tools = {tool for _, tool, _ in COMMANDS}
+    # the scanner finds the commands of the main tools
+    assert {'train.py', 'test.py', 'analysis_tools/ap_drop.py',
+            'model_converters/extract_student.py'} <= tools, tools
+
+
+@pytest.mark.parametrize(
+    'doc,tool,argv', COMMANDS,
+    ids=[f'{d}:{t}:{i}' for i, (d, t, _) in enumerate(COMMANDS)])
+def test_documented_command_parses(doc, tool, argv, restore_environ,
+                                   monkeypatch):
+    assert osp.isfile(osp.join(ROOT, 'tools', tool)), \
+        f'{doc} documents tools/{tool}, which does not exist'
+    module = load_tool(tool)
+    # the parser reads sys.argv where parse_args takes no argv
+    monkeypatch.setattr(sys, 'argv', [f'tools/{tool}'] + argv)
+    takes_argv = bool(inspect.signature(module.parse_args).parameters)
+    try:
+        module.parse_args(argv) if takes_argv else module.parse_args()
+    except SystemExit as err:
+        raise AssertionError(
+            f'{doc}: `python tools/{tool} {" ".join(argv)}` is refused by '
+            f'the tool\'s arguments') from err
+
+
+TRAIN_COMMANDS = [(d, argv) for d, t, argv in COMMANDS
+                  if t == 'train.py' and argv and
+                  osp.isfile(osp.join(ROOT, argv[0]))]
+
+
+@pytest.mark.parametrize('doc,argv', TRAIN_COMMANDS,
+                         ids=[f'{d}:{i}'
+                              for i, (d, _) in enumerate(TRAIN_COMMANDS)])
+def test_documented_train_command_builds_config_and_visualizer(
+        doc, argv, tmp_path, restore_environ):
+    from mmengine.registry import VISUALIZERS
+    train = load_tool('train.py')
+    cfg = train.build_cfg(train.parse_args(argv))
+    init_default_scope(cfg.get('default_scope', 'mmdet'))
+    vis_cfg = dict(cfg.visualizer)
+    vis_cfg.update(name=f'doc_vis_{tmp_path.name}', save_dir=str(tmp_path))
+    visualizer = VISUALIZERS.build(vis_cfg)
+    assert visualizer is not None
+
+
+def test_visualization_doc_tensorboard_command(tmp_path, restore_environ):
+    """docs/visualization.md's command line adds TensorBoard."""
+    (argv, ) = [a for d, t, a in COMMANDS
+                if d == 'docs/visualization.md' and t == 'train.py']
+    train = load_tool('train.py')
+    cfg = train.build_cfg(train.parse_args(argv))
+    types = [b['type'] for b in cfg.visualizer.vis_backends]
+    assert types == ['LocalVisBackend', 'TensorboardVisBackend']
+    # twice is once
+    train.add_tensorboard_backend(cfg)
+    assert len(cfg.visualizer.vis_backends) == 2
+
+
+def readme_snippet():
+    """The README's python block after "Single components in your own
+    MMDet config"."""
+    text = _read(osp.join(ROOT, 'README.md'))
+    start = text.index('Single components in your own MMDet config')
+    return re.search(r'```python\n(.*?)```', text[start:], flags=re.S)[1]
+
+
+def test_readme_snippet_builds_on_mmdet_stock_mask_rcnn(tmp_path):
+    snippet = readme_snippet()
+    if '_base_' not in snippet:  # as a user puts it under a stock config
+        snippet = f'_base_ = {STOCK_MASK_RCNN!r}\n' + snippet
+    assert STOCK_MASK_RCNN in snippet
+    # the snippet's `ann_file=...` placeholders
+    snippet = snippet.replace('ann_file=...', "ann_file='ann.json'")
+    path = tmp_path / 'my_mask_rcnn.py'
+    path.write_text(snippet)
+    cfg = Config.fromfile(str(path))
+    assert cfg.model.roi_head.mask_head.loss_mask == dict(
+        type='CBNetBoundaryAwareLoss', lambda_shape=1.0, lambda_edge=1.0)
+    from mmdet.registry import MODELS
+    init_default_scope('mmdet')
+    # a small ResNet-18 with 16 channels everywhere, for speed
+    model_cfg = cfg.model
+    model_cfg.backbone.update(depth=18, base_channels=8, init_cfg=None)
+    model_cfg.neck.update(in_channels=[8, 16, 32, 64], out_channels=16)
+    model_cfg.rpn_head.update(in_channels=16, feat_channels=16)
+    for key in ('bbox_roi_extractor', 'mask_roi_extractor'):
+        model_cfg.roi_head[key].out_channels = 16
+    for key in ('bbox_head', 'mask_head'):
+        model_cfg.roi_head[key].in_channels = 16
+    torch.manual_seed(0)
+    model = MODELS.build(cfg.model)
+    model.init_weights()
+    assert type(model.roi_head.mask_head.loss_mask).__name__ == \
+        'CBNetBoundaryAwareLoss'
+    assert type(model.rpn_head).__name__ == 'CBNetCascadeRPNHead'
+    # it trains: one loss step on a 64x64 image with one object
+    from mmdet.structures import DetDataSample
+    from mmdet.structures.mask import BitmapMasks
+    from mmengine.structures import InstanceData
+    sample = DetDataSample(metainfo=dict(img_shape=(64, 64),
+                                         ori_shape=(64, 64),
+                                         pad_shape=(64, 64),
+                                         batch_input_shape=(64, 64),
+                                         scale_factor=(1., 1.)))
+    mask = torch.zeros(1, 64, 64, dtype=torch.uint8)
+    mask[0, 16:48, 12:40] = 1
+    sample.gt_instances = InstanceData(
+        bboxes=torch.tensor([[12., 16., 40., 48.]]),
+        labels=torch.tensor([0]),
+        masks=BitmapMasks(mask.numpy(), 64, 64))
+    losses = model.loss(torch.rand(1, 3, 64, 64), [sample])
+    total = sum(v.sum() for k, v in losses.items() if 'loss' in k
+                and torch.is_tensor(v)) + sum(
+                    sum(x.sum() for x in v) for k, v in losses.items()
+                    if 'loss' in k and isinstance(v, list))
+    assert torch.isfinite(total)
+    assert losses['loss_mask'] > 0
+
+
+#: The measured mmcv compile times (docs/install.md): idle, under load.
+MMCV_MINUTES = {'11', '17'}
+#: docs/install.md's other figures (whole install, demo, second env.)
+OTHER_INSTALL_MINUTES = {'12', '14', '19', '3'}
+#: Where install times are stated.
+INSTALL_TIME_FILES = ('README.md', 'docs/install.md', 'docs/faq.md',
+                      'tools/install.sh')
+
+
+def test_one_set_of_mmcv_compile_times():
+    """Every sentence on compiling mmcv states one of the measured times
+    of docs/install.md, in minutes (once 10, 15.5 and 30 in different
+    files)."""
+    stated = {}
+    for name in INSTALL_TIME_FILES:
+        text = ' '.join(_read(osp.join(ROOT, name)).replace('#', ' ')
+                        .split())
+        for sentence in re.split(r'(?<=[.!?])\s', text):
+            if 'mmcv' in sentence and re.search(r'compil|build',
+                                                sentence):
+                for minutes in re.findall(
+                        r'(\d+(?:\.\d+)?)(?:-(\d+))? min(?:utes)?\b',
+                        sentence):
+                    stated.setdefault(name, set()).update(
+                        m for m in minutes if m)
+    assert set(stated) >= {'README.md', 'docs/install.md', 'docs/faq.md',
+                           'tools/install.sh'}, stated
+    for name, minutes in stated.items():
+        allowed = MMCV_MINUTES | OTHER_INSTALL_MINUTES
+        assert minutes <= allowed, (name, minutes)
+        assert minutes & MMCV_MINUTES, (name, minutes)
