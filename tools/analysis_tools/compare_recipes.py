@@ -21,6 +21,16 @@ Built-in sets (configs under configs/, demo-size, one MiT-B0 trunk):
   speed     the speed settings of issue 18: light neck, 3 / 7 stacks,
             1000 proposals at test (a test-time variant)
   rpn       CBNet's Cascade RPN vs RPNHead vs MMDet's CascadeRPNHead
+  parts     what each part of CBNet is worth: MMDet's stock Cascade Mask
+            R-CNN with ONE CBNet part swapped in, and CBNet with ONE part
+            taken back (configs/demo/parts/); --only picks rows
+
+Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
+4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512
+data from `generate_cityscapes_like.py --preset bench`, a budget where
+recipes can be told apart; docs/accuracy.md). Two processes may run the
+same comparison at once (one per core, --threads 1): each run is locked
+by the process that trains it.
 
 Examples::
 
@@ -28,6 +38,12 @@ Examples::
         --convert
     OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
         --set arch --seeds 0 1 2 --iters 120
+    # the benchmark: data once, then the parts set, two processes
+    python tools/misc/generate_cityscapes_like.py \
+        data/cityscapes_like_bench --preset bench --nproc 2 --convert
+    for i in 1 2; do OMP_NUM_THREADS=1 python \
+        tools/analysis_tools/compare_recipes.py --set parts \
+        --preset bench --threads 1 & done; wait
     # your own configs, on the real data
     python tools/analysis_tools/compare_recipes.py \
         --configs mine=configs/my.py baseline=configs/base.py \
