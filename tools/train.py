@@ -6,6 +6,7 @@ Apache-2.0): same arguments and runner set-up.
 Usage::
 
     python tools/train.py CONFIG [--work-dir DIR] [--resume [CKPT]] [--amp]
+        [--strict]
     bash tools/dist_train.sh CONFIG NUM_GPUS [...]   # torch.distributed
     mim train cbnet_mmdet CONFIG [...]               # from an installed wheel
 """
@@ -16,9 +17,9 @@ import os.path as osp
 import torch
 from mmengine.config import Config, DictAction
 from mmengine.registry import RUNNERS
-from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.engine.runner import CBNetRunner
 from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
                                                use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
@@ -41,6 +42,12 @@ def parse_args(argv=None):
         const='auto',
         help='resume from CKPT, or from the latest checkpoint in the work '
         'dir when no path is given')
+    parser.add_argument(
+        '--strict',
+        action='store_true',
+        help='stop with an error on any annotation the datasets would '
+        'drop (unknown category, box outside its image, ...) instead of '
+        'dropping it with a warning')
     parser.add_argument(
         '--cfg-options',
         nargs='+',
@@ -86,9 +93,27 @@ def build_cfg(args) -> Config:
             raise FileNotFoundError(f'--resume: no checkpoint {args.resume}')
         cfg.resume = True
         cfg.load_from = args.resume
+    if args.strict:
+        for key in ('train_dataloader', 'val_dataloader', 'test_dataloader'):
+            set_strict(cfg.get(key) or {})
     if args.launcher != 'none' and not torch.cuda.is_available():
         use_gloo_on_cpu(cfg)
     return cfg
+
+
+def set_strict(node) -> None:
+    """Set ``strict=True`` on every CBNet dataset config under ``node`` (a
+    dataloader config; wrappers' ``dataset`` / ``datasets`` included)."""
+    if isinstance(node, (list, tuple)):
+        for child in node:
+            set_strict(child)
+    elif isinstance(node, dict):
+        kind = node.get('type')
+        if isinstance(kind, str) and kind.split('.')[-1].startswith(
+                'CBNet') and kind.endswith('Dataset'):
+            node['strict'] = True
+        for key in ('dataset', 'datasets'):
+            set_strict(node.get(key))
 
 
 def main(argv=None):
@@ -96,8 +121,8 @@ def main(argv=None):
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
     init_gloo_process_group(cfg)
-    if 'runner_type' not in cfg:
-        runner = Runner.from_cfg(cfg)
+    if 'runner_type' not in cfg:  # checked checkpoint loading
+        runner = CBNetRunner.from_cfg(cfg)
     else:
         runner = RUNNERS.build(cfg)
     runner.train()
