@@ -10,22 +10,13 @@ import pytest
 import torch
 
 from helper_hooks import toy_config
-from tiny_configs import REPO
-
-
-def load_train():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        'cbnet_tools_train_ckpt', osp.join(REPO, 'tools', 'train.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from tiny_configs import load_tool
 
 
 @pytest.fixture
 def train(restore_environ):
     """Run tools/train.py in-process; returns the runner's log text."""
-    module = load_train()
+    module = load_tool('train.py')
 
     def run(work_dir, *args, max_iters=2, **model):
         cfg = toy_config(str(work_dir), max_iters=max_iters, **model)

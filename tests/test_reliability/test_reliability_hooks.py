@@ -12,7 +12,6 @@ import torch
 import torch.nn as nn
 from mmdet.registry import HOOKS
 from mmdet.structures import DetDataSample
-from mmengine.model import BaseModel
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
@@ -85,37 +84,9 @@ def test_non_finite_hook_rejects_bad_interval():
         CBNetNonFiniteLossHook(param_interval=-1)
 
 
-class NaNAtIterModel(BaseModel):
-    """Toy regression whose loss is NaN at one iteration."""
-
-    def __init__(self, nan_at):
-        super().__init__()
-        self.fc = nn.Linear(2, 1)
-        self.nan_at, self.calls = nan_at, 0
-
-    def forward(self, inputs, data_samples=None, mode='loss'):
-        self.calls += 1
-        loss = (self.fc(torch.stack(inputs)) ** 2).mean()
-        if self.calls == self.nan_at:
-            loss = loss * math.nan
-        return dict(loss_toy=loss)
-
-
 def test_training_stops_at_nan_without_saving_it(tmp_path):
-    runner = Runner(
-        model=NaNAtIterModel(nan_at=3),
-        work_dir=str(tmp_path),
-        train_dataloader=dict(
-            dataset=[dict(inputs=torch.ones(2))] * 4,
-            sampler=dict(type='DefaultSampler', shuffle=False),
-            collate_fn=dict(type='pseudo_collate'),
-            batch_size=1),
-        optim_wrapper=dict(optimizer=dict(type='SGD', lr=0.1)),
-        train_cfg=dict(by_epoch=False, max_iters=4),
-        default_hooks=dict(checkpoint=dict(
-            type='CheckpointHook', interval=1, by_epoch=False)),
-        custom_hooks=[dict(type='CBNetNonFiniteLossHook')],
-        default_scope='mmdet')
+    runner = toy_runner(tmp_path, dict(type='CBNetNonFiniteLossHook'),
+                        max_iters=4, it3='nan')
     with pytest.raises(FloatingPointError,
                        match=r'iteration 3 .*loss_toy=nan'):
         runner.train()
@@ -213,8 +184,9 @@ def test_finite_blowup_stops_before_its_checkpoint(tmp_path):
 def test_nan_after_a_blowup_names_the_really_clean_checkpoint(tmp_path):
     """Blow-up at iteration 3 (before the finite check starts), NaN at 5:
     iter_3/iter_4.pth were written in between and are not clean."""
-    runner = toy_runner(tmp_path, dict(type='CBNetNonFiniteLossHook'),
-                        it3=1e4, it4=1e6, it5='nan')
+    runner = toy_runner(
+        tmp_path, dict(type='CBNetNonFiniteLossHook', min_history=5),
+        it3=1e4, it4=1e6, it5='nan')
     with pytest.raises(FloatingPointError) as err:
         runner.train()
     msg = str(err.value)
@@ -250,6 +222,7 @@ def test_parameter_norm_blowup():
     hook = CBNetNonFiniteLossHook(param_interval=1)
     runner = mock_runner(it=0)
     ok = dict(loss=torch.tensor(1.))
+    hook.before_train(runner)  # the reference norm
     hook.after_train_iter(runner, 0, None, ok)
     with torch.no_grad():
         runner.model.weight.mul_(1e4)

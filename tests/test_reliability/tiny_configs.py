@@ -5,6 +5,7 @@ The demo config (``configs/demo/...``) with the tiny generated dataset,
 epoch, fixed seed. Written to a file so ``tools/train.py`` /
 ``tools/dist_train.sh`` can run it in a subprocess.
 """
+import importlib.util
 import os
 import os.path as osp
 import subprocess
@@ -131,3 +132,14 @@ def run(cmd, timeout: float = 240, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run(
         cmd, cwd=REPO, env=subprocess_env(), capture_output=True, text=True,
         timeout=timeout, **kwargs)
+
+
+def load_tool(relpath: str):
+    """Import ``tools/{relpath}`` (not a package) under a private name,
+    e.g. ``load_tool('train.py')``."""
+    name = 'cbnet_tools_reliability_' + relpath.replace('/', '_')[:-3]
+    spec = importlib.util.spec_from_file_location(
+        name, osp.join(REPO, 'tools', relpath))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -94,7 +94,7 @@ class CBNetNonFiniteLossHook(Hook):
       ``blowup_factor`` times the median of the last ``window``
       iterations (once ``min_history`` values are known);
     * the parameters' total norm (every ``param_interval``) above
-      ``blowup_factor`` times its value at the first check.
+      ``blowup_factor`` times its value when training started.
 
     A ``DivergenceError`` (a ``FloatingPointError``) is raised then. The
     error names the iteration (1-based, as in the log), the epoch and
@@ -130,8 +130,9 @@ class CBNetNonFiniteLossHook(Hook):
             disables the finite checks. Defaults to 100.
         window (int): Iterations of the running median. Defaults to 50.
         min_history (int): Iterations seen before the finite checks start
-            (the look-back for the clean checkpoint covers them).
-            Defaults to 5.
+            (the look-back for the clean checkpoint covers them). Defaults
+            to 1: from the second iteration on, a loss 100 x the first is
+            caught before the median takes the blow-up in.
     """
 
     priority = 'ABOVE_NORMAL'
@@ -140,7 +141,7 @@ class CBNetNonFiniteLossHook(Hook):
                  param_interval: int = 50,
                  blowup_factor: float = 100.,
                  window: int = 50,
-                 min_history: int = 5) -> None:
+                 min_history: int = 1) -> None:
         if not isinstance(param_interval, int) or param_interval < 0:
             raise ValueError('CBNetNonFiniteLossHook: param_interval must '
                              f'be an int >= 0, got {param_interval!r}')
@@ -161,6 +162,13 @@ class CBNetNonFiniteLossHook(Hook):
         self.first_param_norm: Optional[float] = None
         self.last_params_ok = 0  # iterations done when last found finite
         self.grad_norms_seen = 0  # length of the logged grad-norm history
+
+    def before_train(self, runner: Runner) -> None:
+        """Take the parameters' norm at the start (after a resume or
+        ``load_from``) as the reference of the blow-up check."""
+        norm = self.parameter_check(runner.model)[1]
+        if math.isfinite(norm):
+            self.first_param_norm = norm
 
     @staticmethod
     def _where(runner: Runner, batch_idx: int) -> str:
@@ -299,7 +307,7 @@ class CBNetNonFiniteLossHook(Hook):
             raise DivergenceError(
                 f'parameter norm blew up after '
                 f'{self._where(runner, batch_idx)}: {norm:.4g} is more than '
-                f'{self.blowup_factor:g} x its first value '
+                f'{self.blowup_factor:g} x its value at the start '
                 f'{self.first_param_norm:.4g}{self._images(data_batch)}.'
                 + self.clean_checkpoint(runner, it, params_bad=True))
         self.last_params_ok = it
