@@ -120,6 +120,8 @@ class CBNetCityscapesDataset(CityscapesDataset):
         except (KeyError, TypeError) as err:
             raise ValueError(f'annotation file {self.ann_file} is not in COCO '
                              f'format: {err!r}') from err
+        finally:
+            del self.COCOAPI  # the class's again; the dict can be freed
         if self.check_files and local:
             self._check_images(data_list)
         return data_list

@@ -443,9 +443,9 @@ def check_coco(coco, ann_file: str, classes: Sequence[str],
 
 def read_json(path: str) -> object:
     """Parse a local JSON file; ``ValueError`` naming it when invalid."""
-    with open(path) as f:
+    with open(path, encoding='utf-8') as f:
         try:
             return json.load(f)
-        except json.JSONDecodeError as err:
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
             raise ValueError(f'annotation file {path} is not valid JSON: '
                              f'{err}') from err

@@ -89,7 +89,8 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
                                 mmap=mmap and head[:2] == b'PK')
     except pickle.UnpicklingError as err:
         raise pickle.UnpicklingError(
-            f'checkpoint {path} refused by weights-only loading: {err}')
+            f'checkpoint {path} refused by weights-only loading: {err}'
+        ) from err
     except (RuntimeError, EOFError, OSError, ValueError) as err:
         raise ValueError(f'checkpoint {path} is truncated or damaged: '
                          f'{err}') from err

@@ -303,3 +303,13 @@ def test_rle_string_counts_rejects_garbage():
         with pytest.raises(ValueError):
             rle_string_counts(bad)
     assert rle_string_counts('') == []
+
+
+def test_not_utf8_is_a_clear_error_and_nothing_kept(tmp_path):
+    path = tmp_path / 'latin1.json'
+    path.write_bytes(b'{"images": [], "x": "\xe9"}')
+    with pytest.raises(ValueError, match=f'annotation file {path} is not '
+                       'valid JSON'):
+        build(str(path))
+    ds = build(write(tmp_path, base_coco()))
+    assert 'COCOAPI' not in vars(ds)  # the checked dict is not kept

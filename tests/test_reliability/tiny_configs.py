@@ -5,7 +5,6 @@ The demo config (``configs/demo/...``) with the tiny generated dataset,
 epoch, fixed seed. Written to a file so ``tools/train.py`` /
 ``tools/dist_train.sh`` can run it in a subprocess.
 """
-import importlib.util
 import os
 import os.path as osp
 import subprocess
@@ -15,6 +14,9 @@ from mmengine.config import Config
 
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 HERE = osp.dirname(osp.abspath(__file__))
+# one loader of the tools/ scripts for all tests: tests/test_tools' helper
+sys.path.append(osp.join(REPO, 'tests', 'test_tools'))
+from tool_helpers import load_tool  # noqa: E402,F401  (re-exported)
 DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 #: (w, h) the 128x256 fixture images are resized to, for speed.
@@ -132,14 +134,3 @@ def run(cmd, timeout: float = 240, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run(
         cmd, cwd=REPO, env=subprocess_env(), capture_output=True, text=True,
         timeout=timeout, **kwargs)
-
-
-def load_tool(relpath: str):
-    """Import ``tools/{relpath}`` (not a package) under a private name,
-    e.g. ``load_tool('train.py')``."""
-    name = 'cbnet_tools_reliability_' + relpath.replace('/', '_')[:-3]
-    spec = importlib.util.spec_from_file_location(
-        name, osp.join(REPO, 'tools', relpath))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module

@@ -59,7 +59,7 @@ def batch_image_paths(data_batch: Optional[dict]) -> List[str]:
 def blowup_onset(history: Sequence[Tuple[int, float]],
                  factor: float) -> Optional[int]:
     """First iteration of ``history`` whose value exceeds ``factor`` times
-    the median of the values before it (None: none does).
+    the (positive) median of the values before it (None: none does).
 
     Args:
         history (Sequence[tuple[int, float]]): ``(iteration, value)`` in
@@ -68,7 +68,7 @@ def blowup_onset(history: Sequence[Tuple[int, float]],
     """
     for i in range(1, len(history)):
         base = statistics.median(v for _, v in history[:i])
-        if history[i][1] > factor * base:
+        if base > 0 and history[i][1] > factor * base:
             return history[i][0]
     return None
 
@@ -92,7 +92,8 @@ class CBNetNonFiniteLossHook(Hook):
     * the total loss (``loss``), and the gradient norm when the optimiser
       wrapper logs one (``clip_grad``: ``train/grad_norm``), above
       ``blowup_factor`` times the median of the last ``window``
-      iterations (once ``min_history`` values are known);
+      iterations (once ``min_history`` values are known; not while that
+      median is <= 0);
     * the parameters' total norm (every ``param_interval``) above
       ``blowup_factor`` times its value when training started.
 
@@ -232,7 +233,7 @@ class CBNetNonFiniteLossHook(Hook):
         history = self.history.setdefault(key, deque(maxlen=self.window))
         if self.blowup_factor and len(history) >= self.min_history:
             median = statistics.median(v for _, v in history)
-            if value > self.blowup_factor * median:
+            if median > 0 and value > self.blowup_factor * median:
                 seen = len(history)
                 history.append((it, value))
                 raise DivergenceError(
