@@ -96,6 +96,7 @@ def test_damaged_twin_is_a_clear_error_naming_it(pair, damage, which):
     assert str(err.value).startswith(f'cannot decode image {path}')
 
 
+@pytest.mark.slow  # a fresh -O process compiles .opt-1.pyc: ~30 s once
 def test_truncated_twin_is_a_clear_error_under_python_O(pair):
     """MMCV's `assert img is not None` is stripped by -O: still our
     error (run in a subprocess with -O)."""
