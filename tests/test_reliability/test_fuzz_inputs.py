@@ -48,6 +48,8 @@ EXPECTED = {
     'bbox_mask_mismatch': 'clear error',
     'polygon_huge': 'clear error',
     'polygon_nan': 'clear error',
+    'foggy_twin_empty': 'clear error',  # paired dataset: names the twin
+    'foggy_twin_truncated': 'clear error',
 }
 
 
@@ -55,7 +57,7 @@ def load_fuzz_tool():
     return load_tool('analysis_tools/fuzz_inputs.py')
 
 
-@pytest.mark.slow  # ~60 s on 2 cores (32 variants, ~11 training steps)
+@pytest.mark.slow  # ~60 s on 2 cores (35 variants, ~11 training steps)
 def test_fuzz_sample_outcome_per_mutation(cityscapes_like_root, tmp_path):
     fuzz = load_fuzz_tool()
     sample = sorted(EXPECTED)

@@ -7,10 +7,13 @@ JSON (keys removed, wrong types, degenerate or out-of-image boxes, broken
 polygons/RLE, unknown, missing, renamed or reordered categories, duplicate
 or mistyped ids, string ``iscrowd``, boxes disagreeing with masks, huge or
 NaN coordinates, invalid JSON ...) or of one image (truncated, random
-bytes, empty, grey/16-bit/RGBA, 1x1 ...). The variant is then read with
+bytes, empty, grey/16-bit/RGBA, 1x1 ...) or of one image's foggy twin
+(empty, truncated). The variant is then read with
 ``CBNetCityscapesDataset`` and the demo config's training pipeline (at
 ``--scale``), collated, and put through one training step (forward,
-backward; no optimiser step, so every variant sees the same weights), in a
+backward; no optimiser step, so every variant sees the same weights) - a
+foggy-twin variant with ``CBNetPairedFoggyDataset`` and the paired loader
+(CBNet-DD's input), without the step -, in a
 forked child process (a segfault or a memory blow-up, capped at
 ``--memory-gb`` more than the parent, is a crash, not the end of the
 sweep). What the dataset loaded is compared with the mutated file before
@@ -69,6 +72,7 @@ from mmengine.registry import init_default_scope
 from pycocotools import mask as mask_utils
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 PACKAGE_DIR = osp.dirname(osp.abspath(cbnet_mmdet.__file__)) + os.sep
@@ -317,7 +321,22 @@ IMAGE_MUTATIONS: Dict[str, Callable] = {
     'img_smaller_than_ann': _rewrite(lambda im: im[:40, :60]),
     'img_directory': lambda s, d, r: os.makedirs(d),
 }
-MUTATIONS = sorted(JSON_MUTATIONS) + sorted(IMAGE_MUTATIONS)
+#: The foggy twin of one image, read with the paired (CBNet-DD) dataset.
+FOGGY_MUTATIONS: Dict[str, Callable] = {
+    'foggy_twin_empty': IMAGE_MUTATIONS['img_empty_file'],
+    'foggy_twin_truncated': _truncate,
+}
+MUTATIONS = sorted(JSON_MUTATIONS) + sorted(IMAGE_MUTATIONS) + sorted(
+    FOGGY_MUTATIONS)
+#: Fog density of the paired variants.
+BETA = 0.02
+#: Pipeline of the paired variants (no training step: the demo detector
+#: takes one image; CBNet-DD's distiller would train on the pair).
+PAIRED_PIPELINE = [
+    dict(type='CBNetLoadPairedImageFromFile'),
+    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
+    dict(type='PackDetInputs'),
+]
 
 # -- one variant ------------------------------------------------------------
 
@@ -352,9 +371,19 @@ def make_variant(root: str, out_dir: str, name: str, num_images: int,
         index = kept[int(rng.integers(len(kept)))]
         image = coco['images'][index]
         src = osp.join(root, 'leftImg8bit', 'train', image['file_name'])
-        mutated = osp.join(out_dir, f'mutated_{index}.png')
-        IMAGE_MUTATIONS[name](src, mutated, rng)
-        image['file_name'] = mutated  # absolute: os.path.join keeps it
+        if name in IMAGE_MUTATIONS:
+            mutated = osp.join(out_dir, f'mutated_{index}.png')
+            IMAGE_MUTATIONS[name](src, mutated, rng)
+            image['file_name'] = mutated  # absolute: os.path.join keeps it
+        else:  # a copy of the clear image, its foggy twin mutated
+            clear = osp.join(out_dir, 'leftImg8bit', 'train',
+                             image['file_name'])
+            mutated = foggy_path(clear, BETA)
+            for path in (clear, mutated):
+                os.makedirs(osp.dirname(path), exist_ok=True)
+            shutil.copy(src, clear)
+            FOGGY_MUTATIONS[name](foggy_path(src, BETA), mutated, rng)
+            image['file_name'] = clear
     with open(ann_file, 'w') as f:
         if name == 'json_truncated':
             f.write(json.dumps(coco)[:100])
@@ -462,8 +491,13 @@ def audit(dataset, ann_file: str, image_dir: str) -> List[str]:
     return problems
 
 
-def run_variant(model, dataset_cfg: dict, ann_file: str) -> dict:
+def run_variant(model, dataset_cfg: dict, ann_file: str,
+                paired: bool = False) -> dict:
     """Dataset (audited) + pipeline + one forward/backward.
+
+    Args:
+        paired (bool): Read with ``CBNetPairedFoggyDataset`` and
+            :data:`PAIRED_PIPELINE` instead, without the training step.
 
     Returns:
         dict: ``outcome`` (``'ok'``, ``'logged drop'`` or ``'silent'``)
@@ -471,11 +505,14 @@ def run_variant(model, dataset_cfg: dict, ann_file: str) -> dict:
     """
     cfg = copy.deepcopy(dataset_cfg)
     cfg.ann_file = ann_file
+    if paired:
+        cfg.update(type='CBNetPairedFoggyDataset', beta=BETA,
+                   pipeline=PAIRED_PIPELINE)
     dataset = DATASETS.build(cfg)
     dataset.full_init()
     problems = audit(dataset, ann_file, dataset.data_prefix['img'])
     items = [dataset[i] for i in range(len(dataset))]
-    if items:
+    if items and not paired:
         data = model.data_preprocessor(pseudo_collate(items), True)
         model.zero_grad()
         losses = model(**data, mode='loss')
@@ -509,13 +546,14 @@ def _vm_bytes() -> int:
     return 0
 
 
-def _child(conn, model, dataset_cfg, ann_file, mutated, memory_gb):
+def _child(conn, model, dataset_cfg, ann_file, mutated, memory_gb,
+           paired):
     """Run one variant in a forked process; send its result."""
     if memory_gb:
         limit = _vm_bytes() + int(memory_gb * 2**30)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     try:
-        result = run_variant(model, dataset_cfg, ann_file)
+        result = run_variant(model, dataset_cfg, ann_file, paired)
     except BaseException as err:  # noqa: B902  (the point of the sweep)
         result = dict(
             outcome=classify(err, mutated, ann_file),
@@ -526,13 +564,15 @@ def _child(conn, model, dataset_cfg, ann_file, mutated, memory_gb):
 
 
 def run_isolated(model, dataset_cfg: dict, ann_file: str, mutated: str,
-                 timeout: float = 600, memory_gb: float = 4) -> dict:
+                 timeout: float = 600, memory_gb: float = 4,
+                 paired: bool = False) -> dict:
     """:func:`run_variant` (and :func:`classify`) in a forked child: a
     segfault, a kill or a hang there is a ``crash`` outcome here."""
     ctx = multiprocessing.get_context('fork')
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(send, model, dataset_cfg,
-                                            ann_file, mutated, memory_gb))
+                                            ann_file, mutated, memory_gb,
+                                            paired))
     proc.start()
     send.close()
     result = None
@@ -598,12 +638,13 @@ def sweep(data_root: str, variants: int, seed: int, num_images: int,
         out_dir = osp.join(work, f'{i:04d}_{name}')
         ann_file, mutated = make_variant(data_root, out_dir, name,
                                          num_images, rng)
+        paired = name in FOGGY_MUTATIONS
         if isolate:
             result = run_isolated(model, dataset_cfg, ann_file, mutated,
-                                  memory_gb=memory_gb)
+                                  memory_gb=memory_gb, paired=paired)
         else:
             try:
-                result = run_variant(model, dataset_cfg, ann_file)
+                result = run_variant(model, dataset_cfg, ann_file, paired)
             except Exception as err:  # noqa: B902  (the point of the sweep)
                 result = dict(outcome=classify(err, mutated, ann_file),
                               error=f'{type(err).__name__}: {err}'[:500],
