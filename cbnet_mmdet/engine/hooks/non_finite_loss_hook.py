@@ -104,8 +104,9 @@ class CBNetNonFiniteLossHook(Hook):
 
         FloatingPointError: non-finite loss at iteration 17 (epoch 2,
         batch 3): s2.loss_mask=nan, loss=nan; batch images: a.png, b.png.
-        ... The last clean checkpoint is work_dirs/x/epoch_1.pth
-        (iteration 12): resume with --resume work_dirs/x/epoch_1.pth
+        The weights of this step were not saved; the last clean checkpoint
+        is work_dirs/x/epoch_1.pth (iteration 12): resume with --resume
+        work_dirs/x/epoch_1.pth. Lower the lr or check the data.
 
     "Clean" looks back: when the recent losses show a blow-up that began
     at iteration ``s`` (a loss above ``blowup_factor`` times the median
