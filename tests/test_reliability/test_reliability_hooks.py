@@ -210,12 +210,15 @@ def test_grad_norm_blowup_against_running_median():
     runner.iter = 5  # the last 4: 5, 4, 2, 6 -> median 4.5
     runner.message_hub.update_scalar('train/grad_norm', 449.0)
     hook.after_train_iter(runner, 5, None, dict(loss=torch.tensor(1.)))
-    runner.iter = 6  # now 4, 2, 6, 449 -> median 5
+    runner.iter = 6  # AMP's skipped step: an infinite norm, ignored
+    runner.message_hub.update_scalar('train/grad_norm', math.inf)
+    hook.after_train_iter(runner, 6, None, dict(loss=torch.tensor(1.)))
+    runner.iter = 7  # now 4, 2, 6, 449 -> median 5
     runner.message_hub.update_scalar('train/grad_norm', 501.0)
     with pytest.raises(FloatingPointError,
-                       match=r'grad_norm blew up at iteration 7 .*: 501 is '
+                       match=r'grad_norm blew up at iteration 8 .*: 501 is '
                        r'more than 100 x the median 5 of the last 4 '):
-        hook.after_train_iter(runner, 6, None, dict(loss=torch.tensor(1.)))
+        hook.after_train_iter(runner, 7, None, dict(loss=torch.tensor(1.)))
 
 
 def test_parameter_norm_blowup():

@@ -122,7 +122,8 @@ class CBNetNonFiniteLossHook(Hook):
 
     With ``AmpOptimWrapper`` only the losses and the parameters are
     checked for NaN/Inf, never the gradients: dynamic loss scaling
-    produces infinite gradients on purpose and skips those steps.
+    produces infinite gradients on purpose and skips those steps (an
+    infinite logged gradient norm is left out of the running median).
 
     Args:
         param_interval (int): Check the parameters every this many
@@ -286,9 +287,11 @@ class CBNetNonFiniteLossHook(Hook):
         if isinstance(scalars, dict) and 'train/grad_norm' in scalars:
             buffer = scalars['train/grad_norm']
             logged = len(buffer.data[0])
-            if logged != self.grad_norms_seen:  # logged this iteration
-                self.grad_norms_seen = logged
-                values.append(('grad_norm', float(buffer.current())))
+            norm = float(buffer.current())
+            # an infinite norm is AMP's loss scaling at work: step skipped
+            if logged != self.grad_norms_seen and math.isfinite(norm):
+                values.append(('grad_norm', norm))
+            self.grad_norms_seen = logged
         return values
 
     def _check_parameters(self, runner: Runner, it: int, batch_idx: int,
