@@ -6,7 +6,7 @@ Apache-2.0): same arguments and runner set-up.
 Usage::
 
     python tools/train.py CONFIG [--work-dir DIR] [--resume [CKPT]] [--amp]
-                         [--tensorboard]
+                         [--tensorboard] [--strict]
     bash tools/dist_train.sh CONFIG NUM_GPUS [...]   # torch.distributed
     mim train cbnet_mmdet CONFIG [...]               # from an installed wheel
 """
@@ -17,9 +17,9 @@ import os.path as osp
 import torch
 from mmengine.config import Config, DictAction
 from mmengine.registry import RUNNERS
-from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.engine.runner import CBNetRunner
 from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
                                                use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
@@ -47,6 +47,12 @@ def parse_args(argv=None):
         action='store_true',
         help='also write the logged scalars for TensorBoard (adds '
         'MMEngine\'s TensorboardVisBackend to visualizer.vis_backends)')
+    parser.add_argument(
+        '--strict',
+        action='store_true',
+        help='stop with an error on any annotation the datasets would '
+        'drop (unknown category, box outside its image, ...) instead of '
+        'dropping it with a warning')
     parser.add_argument(
         '--cfg-options',
         nargs='+',
@@ -94,6 +100,9 @@ def build_cfg(args) -> Config:
             raise FileNotFoundError(f'--resume: no checkpoint {args.resume}')
         cfg.resume = True
         cfg.load_from = args.resume
+    if args.strict:
+        for key in ('train_dataloader', 'val_dataloader', 'test_dataloader'):
+            set_strict(cfg.get(key) or {})
     if args.launcher != 'none' and not torch.cuda.is_available():
         use_gloo_on_cpu(cfg)
     return cfg
@@ -114,13 +123,28 @@ def add_tensorboard_backend(cfg: Config) -> None:
     visualizer.vis_backends = backends
 
 
+def set_strict(node) -> None:
+    """Set ``strict=True`` on every CBNet dataset config under ``node`` (a
+    dataloader config; wrappers' ``dataset`` / ``datasets`` included)."""
+    if isinstance(node, (list, tuple)):
+        for child in node:
+            set_strict(child)
+    elif isinstance(node, dict):
+        kind = node.get('type')
+        if isinstance(kind, str) and kind.split('.')[-1].startswith(
+                'CBNet') and kind.endswith('Dataset'):
+            node['strict'] = True
+        for key in ('dataset', 'datasets'):
+            set_strict(node.get(key))
+
+
 def main(argv=None):
     args = parse_args(argv)
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
     init_gloo_process_group(cfg)
-    if 'runner_type' not in cfg:
-        runner = Runner.from_cfg(cfg)
+    if 'runner_type' not in cfg:  # checked checkpoint loading
+        runner = CBNetRunner.from_cfg(cfg)
     else:
         runner = RUNNERS.build(cfg)
     runner.train()

@@ -1,13 +1,15 @@
 """Cityscapes instance dataset with clear errors on malformed input."""
-import json
-import math
+import functools
+import logging
 import os.path as osp
 from typing import List
 
 from mmdet.datasets import CityscapesDataset
-from pycocotools import mask as mask_utils
 from mmdet.registry import DATASETS
+from mmengine.fileio import get_local_path
+from mmengine.logging import print_log
 
+from .coco_checks import CheckedCOCO, check_coco, read_json
 from .transforms.load_image_from_file import with_checked_loader
 
 #: Missing images listed in the error message (the count is always given).
@@ -27,11 +29,20 @@ class CBNetCityscapesDataset(CityscapesDataset):
       it is missing, and naming the images (first :data:`MAX_LISTED` and the
       count) listed in the annotations but absent on disk;
     * ``ValueError`` naming the annotation file when it is not valid JSON,
-      when an annotation is malformed (box not 4 finite numbers; polygon
-      with fewer than 3 points or odd length; RLE of another size than
-      its image or undecodable; empty segmentation) - with the annotation
-      id and image - or when no training image is left after
-      ``filter_cfg``.
+      when its content is wrong (the value checks of
+      :mod:`~cbnet_mmdet.datasets.coco_checks`: categories matched to the
+      classes by name, unique integer ids, ``iscrowd`` 0/1, boxes of 4
+      finite numbers agreeing with their masks, finite polygons inside the
+      image, RLE of the image's size summing to height x width ...) - with
+      the entry (annotation id and image) and the fix - or when no
+      training image is left after ``filter_cfg``.
+
+    What MMDetection drops silently (unknown category, box outside its
+    image or below 1 px, area 0, ``ignore``, unknown image) is dropped
+    with a warning giving the count per reason (``strict=True``: an error
+    instead), and every full initialisation logs one summary line: images,
+    instances, crowd regions, drops per reason, images left out by
+    ``filter_cfg``. The counts stay in :attr:`load_report`.
 
     Images are loaded with :class:`CBNetLoadImageFromFile` (missing,
     corrupt or wrongly sized image: an error naming the file) wherever the
@@ -42,14 +53,26 @@ class CBNetCityscapesDataset(CityscapesDataset):
         check_files (bool): Check at initialisation that every image
             exists (local files only; skipped with ``backend_args``).
             Default True.
+        strict (bool): Raise instead of dropping annotations
+            (``tools/train.py --strict``). Default False.
         **kwargs: ``CityscapesDataset`` / ``CocoDataset`` arguments.
     """
 
     #: Data-info keys of the image files ``check_files`` looks for.
     image_path_keys = ('img_path', )
 
-    def __init__(self, *args, check_files: bool = True, **kwargs) -> None:
+    def __init__(self,
+                 *args,
+                 check_files: bool = True,
+                 strict: bool = False,
+                 **kwargs) -> None:
         self.check_files = check_files
+        self.strict = strict
+        #: Counts of the last load: ``listed_images``, ``annotations`` (in
+        #: the file), ``drops`` (per reason), ``filtered_images``,
+        #: ``filtered_instances`` (left out by ``filter_cfg``), ``images``,
+        #: ``instances`` and ``crowd`` (loaded, after the filter).
+        self.load_report: dict = {}
         if kwargs.get('pipeline'):
             kwargs['pipeline'] = with_checked_loader(kwargs['pipeline'])
         super().__init__(*args, **kwargs)
@@ -65,41 +88,49 @@ class CBNetCityscapesDataset(CityscapesDataset):
             raise FileNotFoundError(
                 f'annotation file not found: {self.ann_file} (convert '
                 f'gtFine with tools/dataset_converters/cityscapes.py)')
+        with get_local_path(self.ann_file,
+                            backend_args=self.backend_args) as path:
+            try:
+                coco = read_json(path)
+            except ValueError as err:  # names the local copy: name ours
+                raise ValueError(str(err).replace(
+                    path, str(self.ann_file))) from err
+        checked = check_coco(coco, self.ann_file, self.metainfo['classes'],
+                             self.strict)
+        self.load_report = dict(listed_images=len(coco['images']),
+                                annotations=checked.annotations,
+                                drops=dict(checked.drops))
+        if checked.drops:
+            print_log(
+                f'{type(self).__name__}: dropped '
+                f'{sum(checked.drops.values())} of {checked.annotations} '
+                f'annotations of {self.ann_file}: '
+                f'{checked.drop_summary()} (strict=True / --strict to '
+                f'stop instead)', logger='current', level=logging.WARNING)
+        if checked.missing_classes:
+            print_log(
+                f'{type(self).__name__}: no category of {self.ann_file} is '
+                f'named {checked.missing_classes}: no instances of these '
+                f'classes (the others keep their labels)', logger='current',
+                level=logging.WARNING)
+        # MMDet's loop, on an index of the checked content
+        self.COCOAPI = functools.partial(CheckedCOCO, checked.coco)
         try:
             data_list = super().load_data_list()
-        except json.JSONDecodeError as err:
-            raise ValueError(f'annotation file {self.ann_file} is not valid '
-                             f'JSON: {err}') from err
         except (KeyError, TypeError) as err:
             raise ValueError(f'annotation file {self.ann_file} is not in COCO '
                              f'format: {err!r}') from err
+        finally:
+            del self.COCOAPI  # the class's again; the dict can be freed
         if self.check_files and local:
             self._check_images(data_list)
         return data_list
-
-    def parse_data_info(self, raw_data_info: dict) -> dict:
-        """Check every annotation of an image, then parse it as MMDet does.
-
-        Args:
-            raw_data_info (dict): ``raw_img_info`` and ``raw_ann_info``.
-
-        Returns:
-            dict: MMDetection's data info.
-        """
-        img = raw_data_info['raw_img_info']
-        for ann in raw_data_info['raw_ann_info']:
-            problem = annotation_problem(ann, img)
-            if problem:
-                raise ValueError(
-                    f'annotation file {self.ann_file}: annotation '
-                    f'{ann.get("id")} of image {img.get("file_name")!r} '
-                    f'(id {img.get("id")}): {problem}')
-        return super().parse_data_info(raw_data_info)
 
     def filter_data(self) -> List[dict]:
         """MMDet's filter; an empty training set is an error naming the
         annotation file (MMEngine fails later without a name)."""
         data_list = super().filter_data()
+        self._report_load(data_list)
         if not data_list and not self.test_mode:
             raise ValueError(
                 f'no training image left from {self.ann_file} '
@@ -107,6 +138,28 @@ class CBNetCityscapesDataset(CityscapesDataset):
                 f'{self.filter_cfg} (images without non-crowd instances '
                 f'are dropped)')
         return data_list
+
+    def _report_load(self, data_list: List[dict]) -> None:
+        """Log the summary line of a full initialisation."""
+        kept = {id(d) for d in data_list}
+        left_out = [d for d in self.data_list if id(d) not in kept]
+        instances = [i for d in data_list for i in d['instances']]
+        crowd = sum(i['ignore_flag'] for i in instances)
+        report = self.load_report
+        report.update(
+            images=len(data_list),
+            instances=len(instances) - crowd,
+            crowd=crowd,
+            filtered_images=len(left_out),
+            filtered_instances=sum(len(d['instances']) for d in left_out))
+        drops = ', '.join(f'{k} {v}' for k, v in sorted(
+            report['drops'].items())) or 'none'
+        print_log(
+            f'{type(self).__name__} {self.ann_file}: {len(data_list)} images'
+            f', {report["instances"]} instances, {crowd} crowd regions; '
+            f'dropped annotations: {drops}; left out by filter_cfg: '
+            f'{len(left_out)} images ({report["filtered_instances"]} '
+            f'instances)', logger='current', level=logging.INFO)
 
     def _check_images(self, data_list: List[dict]) -> None:
         """Raise ``FileNotFoundError`` naming missing images/folders."""
@@ -124,50 +177,3 @@ class CBNetCityscapesDataset(CityscapesDataset):
             raise FileNotFoundError(
                 f'{len(missing)} image(s) listed in {self.ann_file} are '
                 f'missing, e.g.:\n  {listed}')
-
-
-def annotation_problem(ann: dict, img: dict) -> str:
-    """What is wrong with one COCO annotation ('' when nothing).
-
-    Args:
-        ann (dict): A COCO annotation (``bbox`` x, y, w, h in pixels,
-            ``segmentation`` polygons or RLE).
-        img (dict): Its image entry (``height``, ``width``).
-
-    Returns:
-        str: A description of the first problem found, or ``''``.
-    """
-    bbox = ann.get('bbox')
-    if not isinstance(bbox, (list, tuple)) or len(bbox) != 4 or not all(
-            isinstance(v, (int, float)) and math.isfinite(v) for v in bbox):
-        return f'bbox must be 4 finite numbers [x, y, w, h], got {bbox!r}'
-    if 'segmentation' not in ann:
-        return ''
-    segm = ann['segmentation']
-    if isinstance(segm, list):
-        if not segm:
-            return 'empty segmentation'
-        for poly in segm:
-            if not isinstance(poly, list) or len(poly) < 6 or len(poly) % 2:
-                return ('polygons need an even number (>= 6) of '
-                        f'coordinates, got {str(poly)[:60]}')
-        return ''
-    if isinstance(segm, dict):
-        size = [img.get('height'), img.get('width')]
-        if list(segm.get('size', [])) != size:
-            return (f'RLE size {segm.get("size")} is not the image size '
-                    f'{size}')
-        counts = segm.get('counts')
-        try:
-            if isinstance(counts, list):
-                mask_utils.frPyObjects(segm, *size)
-            else:
-                rle = dict(size=size, counts=counts.encode()
-                           if isinstance(counts, str) else counts)
-                if mask_utils.area(rle) > size[0] * size[1]:
-                    raise ValueError
-                mask_utils.decode(rle)
-        except Exception:  # noqa: B902  (pycocotools raises many types)
-            return f'undecodable RLE counts {str(counts)[:40]!r}'
-        return ''
-    return f'segmentation must be polygons or RLE, got {type(segm).__name__}'

@@ -1,4 +1,10 @@
-"""Checkpoint files for release: publish (strip + hash) and student export.
+"""Checkpoint files: checked reading, resuming, release and student export.
+
+:func:`read_checkpoint` reads a checkpoint weights-only and names the file
+and the problem when it is missing, empty, truncated, foreign or no
+PyTorch file; :func:`resume_checkpoint` picks what ``--resume`` continues
+from (``last_checkpoint`` resolved inside the work dir, the newest intact
+checkpoint when the latest is damaged).
 
 :func:`publish_checkpoint` follows MMDetection's
 ``tools/model_converters/publish_model.py`` (OpenMMLab, Apache-2.0): keep
@@ -15,10 +21,13 @@ distiller's ``detector``, so that MMDetection's ``DetInferencer`` and
 ``init_detector`` load it like any detector checkpoint.
 """
 import copy
+import glob
 import hashlib
 import os
 import os.path as osp
-from typing import Sequence
+import pickle
+import zipfile
+from typing import List, Optional, Sequence, Tuple
 
 import torch
 from mmengine.config import Config
@@ -28,6 +37,210 @@ from mmengine.runner import CheckpointLoader
 PUBLISH_KEYS = ('meta', 'state_dict')
 #: Bytes read at a time when hashing.
 _CHUNK = 1 << 20
+
+
+def read_checkpoint(path: str, mmap: bool = False) -> dict:
+    """Read a local checkpoint file, naming the file and the problem.
+
+    Loads with ``torch.load(weights_only=True)`` and the project's
+    allow-list (:mod:`cbnet_mmdet.utils.checkpoint_safe_globals`); never
+    with ``weights_only=False``. Meant for every place that reads a
+    checkpoint the user names (``--resume``, ``load_from``, the work dir's
+    latest, inference tools): instead of torch's ``PytorchStreamReader``
+    error, ``KeyError: 101`` (a text file) and the like, one error says
+    which file and what is wrong.
+
+    Args:
+        path (str): Local file.
+        mmap (bool): Map the tensors' storage instead of reading it (cheap
+            check of a large file; the result's tensors stay valid).
+
+    Returns:
+        dict: The checkpoint's top level (MMEngine's ``meta``,
+        ``state_dict``, ... or a bare state dict).
+
+    Raises:
+        FileNotFoundError: No such file.
+        ValueError: Empty file, truncated or damaged zip archive (an
+            interrupted save), not a PyTorch file at all, or a top level
+            that is not a dict.
+        pickle.UnpicklingError: The file asks for code outside the
+            allow-list (refused, as a malicious file must be).
+    """
+    if not osp.isfile(path):
+        raise FileNotFoundError(f'checkpoint not found: {path}')
+    size = osp.getsize(path)
+    if size == 0:
+        raise ValueError(f'checkpoint {path} is empty (0 bytes): an '
+                         f'interrupted save? Use an earlier checkpoint')
+    with open(path, 'rb') as f:
+        head = f.read(4)
+    if head[:2] == b'PK' and not zipfile.is_zipfile(path):
+        raise ValueError(
+            f'checkpoint {path} is truncated or damaged ({size} bytes, no '
+            f'zip directory at its end): an interrupted save or copy? Use '
+            f'an earlier checkpoint')
+    if head[:2] != b'PK' and head[:1] != b'\x80':
+        raise ValueError(
+            f'{path} is not a PyTorch checkpoint (it starts with '
+            f'{head!r}, neither a zip archive nor a pickle)')
+    try:
+        checkpoint = torch.load(path, map_location='cpu', weights_only=True,
+                                mmap=mmap and head[:2] == b'PK')
+    except pickle.UnpicklingError as err:
+        raise pickle.UnpicklingError(
+            f'checkpoint {path} refused by weights-only loading: {err}'
+        ) from err
+    except (RuntimeError, EOFError, OSError, ValueError) as err:
+        raise ValueError(f'checkpoint {path} is truncated or damaged: '
+                         f'{err}') from err
+    if not isinstance(checkpoint, dict):
+        raise ValueError(f'{path} holds a {type(checkpoint).__name__}, not '
+                         f'a checkpoint dict')
+    return checkpoint
+
+
+def check_resumable(checkpoint: dict, path: str) -> None:
+    """Raise ``ValueError`` naming ``path`` unless ``checkpoint`` (read with
+    :func:`read_checkpoint`) is a training checkpoint MMEngine can resume:
+    ``meta`` with ``epoch`` and ``iter``, a ``state_dict`` dict."""
+    if 'meta' not in checkpoint or 'state_dict' not in checkpoint:
+        what = 'a bare state dict' if checkpoint and all(
+            isinstance(v, torch.Tensor) for v in checkpoint.values()) \
+            else f'a dict with keys {sorted(checkpoint)[:6]}'
+        raise ValueError(
+            f'{path} cannot be resumed: it is {what}, not a training '
+            f'checkpoint (no `meta` with epoch and iteration, or no '
+            f'`state_dict`). --resume continues a run of tools/train.py; '
+            f'to start from these weights use load_from (--cfg-options '
+            f'load_from={path})')
+    meta = checkpoint['meta']
+    if not isinstance(meta, dict) or not all(
+            isinstance(meta.get(k), int) for k in ('epoch', 'iter')) or \
+            not isinstance(checkpoint['state_dict'], dict):
+        raise ValueError(
+            f'{path} cannot be resumed: its `meta` has no integer epoch '
+            f'and iter, or its `state_dict` is not a dict (a published or '
+            f'exported checkpoint? use it as load_from)')
+
+
+def checkpoint_problem(path: str) -> str:
+    """Why ``path`` cannot be resumed ('' when it can); reads it with
+    ``mmap`` (cheap)."""
+    try:
+        check_resumable(read_checkpoint(path, mmap=True), path)
+    except (OSError, ValueError, pickle.UnpicklingError) as err:
+        return str(err)
+    return ''
+
+
+def intact_checkpoints(work_dir: str) -> List[Tuple[str, int]]:
+    """The resumable ``*.pth`` files of a work dir, newest first.
+
+    Args:
+        work_dir (str): Where ``CheckpointHook`` writes.
+
+    Returns:
+        list[tuple[str, int]]: ``(path, meta iter)`` sorted by iteration,
+        then modification time, newest first; damaged, foreign and
+        unreadable files are left out.
+    """
+    found = []
+    for path in glob.glob(osp.join(glob.escape(work_dir), '*.pth')):
+        try:
+            checkpoint = read_checkpoint(path, mmap=True)
+            check_resumable(checkpoint, path)
+        except (OSError, ValueError, pickle.UnpicklingError):
+            continue
+        found.append((path, checkpoint['meta']['iter'],
+                      osp.getmtime(path)))
+    found.sort(key=lambda item: (item[1], item[2]), reverse=True)
+    return [(path, it) for path, it, _ in found]
+
+
+def last_checkpoint_in(work_dir: str) -> Tuple[Optional[str], str]:
+    """The checkpoint ``work_dir/last_checkpoint`` names, as a path inside
+    ``work_dir``.
+
+    MMEngine writes an absolute path there. When the work dir was moved
+    or copied, that path names the ORIGINAL folder's file (or nothing);
+    this returns the file of the same name in ``work_dir`` instead.
+
+    Returns:
+        tuple[str | None, str]: The path (None: no ``last_checkpoint``
+        file, or it names nothing in ``work_dir``) and a note for the log
+        ('' when the recorded path was used as it is).
+    """
+    record = osp.join(work_dir, 'last_checkpoint')
+    if not osp.isfile(record):
+        return None, ''
+    with open(record) as f:
+        recorded = f.read().strip()
+    if not recorded:
+        return None, f'{record} is empty'
+    here = recorded if osp.isabs(recorded) else osp.join(work_dir, recorded)
+    local = osp.join(work_dir, osp.basename(recorded))
+    if osp.realpath(osp.dirname(here)) == osp.realpath(work_dir):
+        return here, ''
+    if osp.isfile(local):
+        return local, (f'{record} names {recorded}, outside the work dir '
+                       f'(moved or copied?): using {local}')
+    return None, (f'{record} names {recorded}, which is not in the work '
+                  f'dir {work_dir}')
+
+
+def resume_checkpoint(work_dir: str,
+                      path: Optional[str] = None) -> Tuple[Optional[str],
+                                                           List[str]]:
+    """The checkpoint to resume from, checked, with what to log.
+
+    Args:
+        work_dir (str): The run's work dir.
+        path (str, optional): The checkpoint asked for (``--resume PATH``);
+            None: the work dir's latest (``--resume``).
+
+    Returns:
+        tuple[str | None, list[str]]: The checkpoint (None: nothing to
+        resume from in the work dir, train from scratch) and notes for
+        the log (a moved work dir, a damaged latest checkpoint and the
+        fallback taken).
+
+    Raises:
+        FileNotFoundError / ValueError / pickle.UnpicklingError: ``path``
+            was given and cannot be resumed (named, with the problem and
+            the newest intact checkpoint of the work dir, if any).
+    """
+    if path is not None and '://' in path:
+        return path, []  # remote: MMEngine's loader
+    if path is not None:
+        problem = checkpoint_problem(path)
+        if problem:
+            intact = [p for p, _ in intact_checkpoints(work_dir)
+                      if osp.realpath(p) != osp.realpath(path)]
+            hint = (f' (newest intact checkpoint of {work_dir}: '
+                    f'{intact[0]})' if intact else '')
+            error = FileNotFoundError if not osp.isfile(path) else \
+                pickle.UnpicklingError if 'refused' in problem else ValueError
+            raise error(f'--resume {path}: {problem}{hint}')
+        return path, []
+    latest, note = last_checkpoint_in(work_dir)
+    notes = [note] if note else []
+    if latest is not None:
+        problem = checkpoint_problem(latest)
+        if not problem:
+            return latest, notes
+        notes.append(f'latest checkpoint unusable: {problem}')
+    intact = intact_checkpoints(work_dir)
+    if intact:
+        if latest is not None or note:
+            notes.append(f'falling back to the newest intact checkpoint of '
+                         f'the work dir: {intact[0][0]} (iteration '
+                         f'{intact[0][1]})')
+        return intact[0][0], notes
+    if latest is not None or note:
+        notes.append(f'no intact checkpoint in {work_dir}: training from '
+                     f'scratch')
+    return None, notes
 
 
 def load_checkpoint_file(path: str) -> dict:
@@ -41,11 +254,14 @@ def load_checkpoint_file(path: str) -> dict:
 
     Raises:
         FileNotFoundError: a local ``path`` that does not exist.
-        ValueError: the file holds no ``state_dict`` dict.
+        ValueError: the file is damaged or not a checkpoint (see
+            :func:`read_checkpoint`) or holds no ``state_dict`` dict.
     """
-    if '://' not in path and not osp.isfile(path):
-        raise FileNotFoundError(f'checkpoint not found: {path}')
-    checkpoint = CheckpointLoader.load_checkpoint(path, map_location='cpu')
+    if '://' in path:
+        checkpoint = CheckpointLoader.load_checkpoint(path,
+                                                      map_location='cpu')
+    else:
+        checkpoint = read_checkpoint(path)
     if not isinstance(checkpoint, dict) or not isinstance(
             checkpoint.get('state_dict'), dict):
         raise ValueError(f'{path} is not an MMEngine checkpoint (no '

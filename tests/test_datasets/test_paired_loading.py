@@ -1,3 +1,7 @@
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from mmcv import imwrite
@@ -76,3 +80,39 @@ def test_bad_input(pair, tmp_path):
     with pytest.raises(ValueError, match='color_type'):
         TRANSFORMS.build(dict(type='CBNetLoadPairedImageFromFile',
                               color_type='grayscale'))
+
+
+@pytest.mark.parametrize('damage', ['empty', 'truncated'])
+@pytest.mark.parametrize('which', ['foggy_img_path', 'img_path'])
+def test_damaged_twin_is_a_clear_error_naming_it(pair, damage, which):
+    path = pair[which]
+    with open(path, 'rb') as f:
+        data = f.read()
+    with open(path, 'wb') as f:
+        f.write(b'' if damage == 'empty' else data[:len(data) // 3])
+    load = TRANSFORMS.build(dict(type='CBNetLoadPairedImageFromFile'))
+    with pytest.raises(ValueError) as err:
+        load(dict(pair))
+    assert str(err.value).startswith(f'cannot decode image {path}')
+
+
+@pytest.mark.slow  # a fresh -O process compiles .opt-1.pyc: ~30 s once
+def test_truncated_twin_is_a_clear_error_under_python_O(pair):
+    """MMCV's `assert img is not None` is stripped by -O: still our
+    error (run in a subprocess with -O)."""
+    with open(pair['foggy_img_path'], 'rb') as f:
+        data = f.read()
+    with open(pair['foggy_img_path'], 'wb') as f:
+        f.write(data[:len(data) // 3])
+    code = (
+        'import cbnet_mmdet\n'
+        'from mmdet.registry import TRANSFORMS\n'
+        "load = TRANSFORMS.build(dict(type='CBNetLoadPairedImageFromFile'))\n"
+        f'load({dict(pair)!r})\n')
+    proc = subprocess.run([sys.executable, '-O', '-c', code],
+                          capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, OMP_NUM_THREADS='1'))
+    assert proc.returncode != 0
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith('ValueError: cannot decode image '
+                           f"{pair['foggy_img_path']}"), proc.stderr

@@ -2,7 +2,6 @@
 config key, raised by our code (not from deep inside mmcv/mmengine), when
 training through ``tools/train.py`` with the demo config."""
 import glob
-import importlib.util
 import json
 import os
 import os.path as osp
@@ -15,7 +14,7 @@ from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
 from cbnet_mmdet.datasets.cityscapes_to_coco import convert
-from tiny_configs import REPO, demo_cfg, write_cfg
+from tiny_configs import demo_cfg, load_tool, write_cfg
 
 ANN = osp.join('annotations', 'instancesonly_filtered_gtFine_train.json')
 # tools/train.py exports LOCAL_RANK (as launchers expect): undo it
@@ -23,11 +22,7 @@ pytestmark = pytest.mark.usefixtures('restore_environ')
 
 
 def load_train_tool():
-    spec = importlib.util.spec_from_file_location(
-        'cbnet_tools_train_reliability', osp.join(REPO, 'tools', 'train.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool('train.py')
 
 
 @pytest.fixture

@@ -6,6 +6,7 @@ Exact equality on CPU: same seed, ``num_workers=0`` and
 resumed run flips and samples differently and ends with other weights).
 """
 import os.path as osp
+import re
 import shutil
 import subprocess
 
@@ -94,6 +95,11 @@ def test_sigkill_mid_epoch_then_resume_is_exact(cityscapes_like_root,
     logs = [p.communicate(timeout=240)[0] for p in procs]
     assert procs[0].returncode == 0, logs[0][-3000:]
     assert procs[1].returncode == -9, logs[1][-3000:]  # SIGKILL
+    # every training run starts with the dataset's summary line
+    assert re.search(
+        r'CBNetCityscapesDataset \S+instancesonly_filtered_gtFine_train\.json'
+        r': 3 images, \d+ instances, \d+ crowd regions; dropped annotations: '
+        r'none; left out by filter_cfg: 1 images', logs[0]), logs[0][:3000]
     assert osp.isfile(osp.join(cut, 'epoch_1.pth'))
     assert not osp.exists(osp.join(cut, 'epoch_2.pth'))
     shutil.copytree(cut, cut_no_rng)

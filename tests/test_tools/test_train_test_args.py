@@ -99,3 +99,21 @@ def test_test_tool_missing_checkpoint(tmp_path, clean_local_rank):
             mod.parse_args(
                 [_write_cfg(tmp_path),
                  str(tmp_path / 'missing.pth')]))
+
+
+def test_train_strict_reaches_every_cbnet_dataset(tmp_path,
+                                                  clean_local_rank):
+    mod = _load('train')
+    cfg_path = tmp_path / 'strict_cfg.py'
+    cfg_path.write_text(
+        'train_dataloader = dict(dataset=dict(type="RepeatDataset", '
+        'times=2, dataset=dict(type="CBNetPairedFoggyDataset")))\n'
+        'val_dataloader = dict(dataset=dict(type="ConcatDataset", datasets=['
+        'dict(type="CBNetCityscapesDataset"), dict(type="CocoDataset")]))\n')
+    cfg = mod.build_cfg(mod.parse_args([str(cfg_path), '--strict']))
+    assert cfg.train_dataloader.dataset.dataset.strict is True
+    assert 'strict' not in cfg.train_dataloader.dataset
+    first, other = cfg.val_dataloader.dataset.datasets
+    assert first.strict is True and 'strict' not in other
+    plain = mod.build_cfg(mod.parse_args([str(cfg_path)]))
+    assert 'strict' not in plain.train_dataloader.dataset.dataset

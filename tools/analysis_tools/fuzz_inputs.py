@@ -4,36 +4,57 @@ dataset, the training pipeline and one training step of the demo CBNet.
 Each variant is the training split of a Cityscapes-like COCO dataset
 (first ``--images`` images) with ONE random mutation: of the annotation
 JSON (keys removed, wrong types, degenerate or out-of-image boxes, broken
-polygons/RLE, unknown categories, dangling ids, invalid JSON ...) or of one
-image (truncated, random bytes, empty, grey/16-bit/RGBA, 1x1 ...). The
-variant is then read with ``CBNetCityscapesDataset`` and the demo config's
-training pipeline (at ``--scale``), collated, and put through one training
-step (forward, backward; no optimiser step, so every variant sees the same
-weights). Outcomes:
+polygons/RLE, unknown, missing, renamed or reordered categories, duplicate
+or mistyped ids, string ``iscrowd``, boxes disagreeing with masks, huge or
+NaN coordinates, invalid JSON ...) or of one image (truncated, random
+bytes, empty, grey/16-bit/RGBA, 1x1 ...) or of one image's foggy twin
+(empty, truncated). The variant is then read with
+``CBNetCityscapesDataset`` and the demo config's training pipeline (at
+``--scale``), collated, and put through one training step (forward,
+backward; no optimiser step, so every variant sees the same weights) - a
+foggy-twin variant with ``CBNetPairedFoggyDataset`` and the paired loader
+(CBNet-DD's input), without the step -, in a
+forked child process (a segfault or a memory blow-up, capped at
+``--memory-gb`` more than the parent, is a crash, not the end of the
+sweep). What the dataset loaded is compared with the mutated file before
+the step (:func:`audit`): every loaded instance must be an annotation of
+the file with the same image, class NAME, crowd flag, box and mask, and
+every annotation and image not loaded must be counted in the dataset's
+``load_report`` (the drops it logs per reason, and what ``filter_cfg``
+left out). Outcomes:
 
-* ``ok``: trained, all losses and gradients finite;
+* ``ok``: trained, all losses and gradients finite, everything accounted
+  for, nothing dropped;
+* ``logged drop``: the same, with annotations dropped and logged per
+  reason;
 * ``clear error``: ``FileNotFoundError`` / ``ValueError`` / ``KeyError`` /
   ``TypeError`` raised by the package's own code (a check of
   ``cbnet_mmdet``, not a library error that happens to print a path) AND
   naming the mutated file (the image, or the annotation file);
+* ``silent``: trained, but an annotation or image vanished without being
+  counted, or an instance changed (label, crowd flag, box, mask) - a
+  FAILURE, listed with the mutation;
 * ``crash``: anything else (other exceptions, library errors, errors that
-  name no file, non-finite losses or gradients) - listed with the mutation
-  to reproduce.
+  name no file, non-finite losses or gradients, a killed or hung child) -
+  listed with the mutation to reproduce.
 
 Usage::
 
     python tools/analysis_tools/fuzz_inputs.py [--data-root DIR]
         [--variants 300] [--seed 0] [--out work_dirs/fuzz_inputs.json]
 
-Without ``--data-root`` a tiny set (4 + 3 images at 128x256) is generated
+Without ``--data-root`` a tiny set (4 + 1 images at 128x256) is generated
 in a temporary folder. Prints a markdown table per mutation and writes the
-counts and every crash as JSON.
+counts, every silent outcome and every crash as JSON.
 """
 import argparse
 import copy
 import json
+import math
+import multiprocessing
 import os
 import os.path as osp
+import resource
 import shutil
 import tempfile
 import time
@@ -48,8 +69,10 @@ from mmdet.registry import DATASETS, MODELS
 from mmengine.config import Config
 from mmengine.dataset import pseudo_collate
 from mmengine.registry import init_default_scope
+from pycocotools import mask as mask_utils
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
+from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 PACKAGE_DIR = osp.dirname(osp.abspath(cbnet_mmdet.__file__)) + os.sep
@@ -57,6 +80,7 @@ DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 ANN = osp.join('annotations', 'instancesonly_filtered_gtFine_train.json')
 CLEAR_TYPES = (FileNotFoundError, ValueError, KeyError, TypeError)
+OUTCOMES = ('ok', 'logged drop', 'clear error', 'silent', 'crash')
 
 # -- mutations --------------------------------------------------------------
 # A JSON mutation takes (coco dict, rng) and edits it in place; an image
@@ -118,6 +142,77 @@ def _many_tiny(coco, rng):
                  segmentation=[[x, y, x + 1, y, x + 1, y + 1]]))
 
 
+def _category(name, edit):
+    """Edit the categories list around the category called ``name``."""
+    def mutate(coco, rng):
+        cats = coco['categories']
+        index = next(i for i, c in enumerate(cats) if c['name'] == name)
+        edit(cats, index)
+    return mutate
+
+
+def _drop_class(coco, rng):
+    """Remove the class 'rider' from the file: its category and its
+    annotations (a set without riders); the classes after it must keep
+    their labels."""
+    cat = next(c for c in coco['categories'] if c['name'] == 'rider')
+    coco['categories'].remove(cat)
+    coco['annotations'] = [a for a in coco['annotations']
+                           if a['category_id'] != cat['id']]
+
+
+def _reverse_categories(coco, rng):
+    coco['categories'].reverse()
+
+
+def _dup_ann_id(coco, rng):
+    coco['annotations'][1]['id'] = coco['annotations'][0]['id']
+
+
+def _dup_file_name(coco, rng):
+    coco['images'][1]['file_name'] = coco['images'][0]['file_name']
+
+
+def _rle_ann(coco, rng):
+    """A random annotation given as RLE (the converter writes RLE)."""
+    anns = [a for a in coco['annotations']
+            if isinstance(a.get('segmentation'), dict)]
+    return anns[int(rng.integers(len(anns)))]
+
+
+def _rle_short(coco, rng):
+    """Counts of a mask one column narrower than the image: they sum to
+    less than height x width."""
+    a = _rle_ann(coco, rng)
+    h, w = a['segmentation']['size']
+    rle = mask_utils.encode(np.zeros((h, w - 1), np.uint8, order='F'))
+    a['segmentation']['counts'] = rle['counts'].decode()
+
+
+def _rle_long(coco, rng):
+    a = _rle_ann(coco, rng)
+    h, w = a['segmentation']['size']
+    a['segmentation']['counts'] = [h * w - 7, 50]
+
+
+def _polygon(value):
+    """Replace a segmentation by a triangle of the box with one coordinate
+    set to ``value``."""
+    def mutate(coco, rng):
+        a = _ann(coco, rng)
+        x, y, w, h = a['bbox']
+        poly = [x, y, x + w, y, x + w, y + h]
+        poly[int(rng.integers(6))] = value
+        a['segmentation'] = [poly]
+    return mutate
+
+
+def _shift_box(coco, rng):
+    a = _ann(coco, rng)
+    x, y, w, h = a['bbox']
+    a['bbox'] = [x + w + 10.0, y, w, h]
+
+
 JSON_MUTATIONS: Dict[str, Callable] = {
     'bbox_negative_size': _box(lambda x, y, w, h, r: [x, y, -w, -h]),
     'bbox_zero_size': _box(lambda x, y, w, h, r: [x, y, 0.0, 0.0]),
@@ -160,6 +255,35 @@ JSON_MUTATIONS: Dict[str, Callable] = {
     'ann_key_image_id_missing': _drop('image_id', 'annotations'),
     'many_tiny_instances': _many_tiny,
     'json_truncated': lambda coco, rng: None,  # cut when written
+    'json_top_level_list': lambda coco, rng: None,  # written as a list
+    # labels by category NAME: missing, reordered, renamed, duplicated
+    'category_missing_used': _category('car', lambda c, i: c.pop(i)),
+    'category_missing_first': _category('person', lambda c, i: c.pop(i)),
+    'category_missing_train': _category('train', lambda c, i: c.pop(i)),
+    'class_absent': _drop_class,
+    'categories_reversed': _reverse_categories,
+    'category_renamed': _category(
+        'car', lambda c, i: c[i].update(name='automobile')),
+    'category_duplicate_name': _category(
+        'car', lambda c, i: c[i].update(name=c[i - 1]['name'])),
+    # ids: unique and typed
+    'image_id_string': _set('images', 'id', lambda it, r: str(it['id'])),
+    'image_id_float': _set('images', 'id', lambda it, r: it['id'] + 0.0),
+    'ann_image_id_string': _set('annotations', 'image_id',
+                                lambda it, r: str(it['image_id'])),
+    'duplicate_ann_id': _dup_ann_id,
+    'duplicate_file_name': _dup_file_name,
+    # values
+    'iscrowd_string': _set('annotations', 'iscrowd', '0'),
+    'iscrowd_two': _set('annotations', 'iscrowd', 2),
+    'rle_counts_short': _rle_short,
+    'rle_counts_long': _rle_long,
+    'polygon_huge': _polygon(1e30),
+    'polygon_nan': _polygon(float('nan')),
+    'bbox_mask_mismatch': _shift_box,
+    'bbox_below_1px': _box(lambda x, y, w, h, r: [x, y, 0.5, h]),
+    'area_zero': _set('annotations', 'area', 0),
+    'ignore_true': _set('annotations', 'ignore', True),
 }
 
 
@@ -197,7 +321,22 @@ IMAGE_MUTATIONS: Dict[str, Callable] = {
     'img_smaller_than_ann': _rewrite(lambda im: im[:40, :60]),
     'img_directory': lambda s, d, r: os.makedirs(d),
 }
-MUTATIONS = sorted(JSON_MUTATIONS) + sorted(IMAGE_MUTATIONS)
+#: The foggy twin of one image, read with the paired (CBNet-DD) dataset.
+FOGGY_MUTATIONS: Dict[str, Callable] = {
+    'foggy_twin_empty': IMAGE_MUTATIONS['img_empty_file'],
+    'foggy_twin_truncated': _truncate,
+}
+MUTATIONS = sorted(JSON_MUTATIONS) + sorted(IMAGE_MUTATIONS) + sorted(
+    FOGGY_MUTATIONS)
+#: Fog density of the paired variants.
+BETA = 0.02
+#: Pipeline of the paired variants (no training step: the demo detector
+#: takes one image; CBNet-DD's distiller would train on the pair).
+PAIRED_PIPELINE = [
+    dict(type='CBNetLoadPairedImageFromFile'),
+    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
+    dict(type='PackDetInputs'),
+]
 
 # -- one variant ------------------------------------------------------------
 
@@ -223,17 +362,35 @@ def make_variant(root: str, out_dir: str, name: str, num_images: int,
     if name in JSON_MUTATIONS:
         JSON_MUTATIONS[name](coco, rng)
     else:
-        index = int(rng.integers(len(coco['images'])))
+        # an image the training set keeps (one with a non-crowd instance):
+        # a mutated image that filter_cfg leaves out would test nothing
+        trained = {a['image_id'] for a in coco['annotations']
+                   if not a.get('iscrowd')}
+        kept = [i for i, im in enumerate(coco['images'])
+                if im['id'] in trained] or list(range(len(coco['images'])))
+        index = kept[int(rng.integers(len(kept)))]
         image = coco['images'][index]
         src = osp.join(root, 'leftImg8bit', 'train', image['file_name'])
-        mutated = osp.join(out_dir, f'mutated_{index}.png')
-        IMAGE_MUTATIONS[name](src, mutated, rng)
-        image['file_name'] = mutated  # absolute: os.path.join keeps it
+        if name in IMAGE_MUTATIONS:
+            mutated = osp.join(out_dir, f'mutated_{index}.png')
+            IMAGE_MUTATIONS[name](src, mutated, rng)
+            image['file_name'] = mutated  # absolute: os.path.join keeps it
+        else:  # a copy of the clear image, its foggy twin mutated
+            clear = osp.join(out_dir, 'leftImg8bit', 'train',
+                             image['file_name'])
+            mutated = foggy_path(clear, BETA)
+            for path in (clear, mutated):
+                os.makedirs(osp.dirname(path), exist_ok=True)
+            shutil.copy(src, clear)
+            FOGGY_MUTATIONS[name](foggy_path(src, BETA), mutated, rng)
+            image['file_name'] = clear
     with open(ann_file, 'w') as f:
         if name == 'json_truncated':
             f.write(json.dumps(coco)[:100])
+        elif name == 'json_top_level_list':
+            json.dump([coco], f)
         else:
-            json.dump(coco, f)
+            json.dump(coco, f)  # NaN as the token NaN, as Python reads it
     return ann_file, mutated
 
 
@@ -253,29 +410,188 @@ def build(data_root: str, scale: Tuple[int, int]):
     return model.train(), dataset
 
 
-def run_variant(model, dataset_cfg: dict, ann_file: str) -> str:
-    """Dataset + pipeline + one forward/backward; ``'ok'`` or raise."""
+def _instance_key(file_name, name, crowd, box, mask) -> tuple:
+    return (file_name, name, bool(crowd), tuple(round(float(v), 3)
+                                                for v in box),
+            json.dumps(mask, sort_keys=True))
+
+
+def audit(dataset, ann_file: str, image_dir: str) -> List[str]:
+    """What the dataset lost or changed without counting it.
+
+    The reference is the annotation file itself, read here: an
+    annotation belongs to the image(s) whose ``id`` equals its
+    ``image_id`` (same type), its class is the NAME of its category, its
+    crowd flag ``iscrowd == 1``, its box ``[x, y, x + w, y + h]``.
+
+    Args:
+        dataset: A fully initialised ``CBNetCityscapesDataset``.
+        ann_file (str): The (mutated) file it read.
+        image_dir (str): ``data_prefix.img`` (removed from ``img_path``).
+
+    Returns:
+        list[str]: One line per problem: a loaded instance that matches no
+        annotation of the file (a changed label, crowd flag, box or mask),
+        annotations or images missing from what was loaded AND from the
+        dataset's ``load_report`` (drops logged per reason, what
+        ``filter_cfg`` left out). Empty: everything accounted for.
+    """
+    with open(ann_file) as f:
+        coco = json.load(f)
+    if not isinstance(coco, dict):
+        return [f'loaded {len(dataset)} images from a JSON '
+                f'{type(coco).__name__}']
+    typed = lambda v: (type(v), v)  # noqa: E731  (1 and 1.0 and '1' differ)
+    classes = dataset.metainfo['classes']
+    names = {typed(c.get('id')): c.get('name') for c in coco['categories']}
+    files: Dict[tuple, List[str]] = defaultdict(list)
+    for img in coco['images']:
+        files[typed(img.get('id'))].append(img.get('file_name'))
+    reference = Counter()
+    for a in coco['annotations']:
+        try:
+            x, y, w, h = a['bbox']
+            box = [x, y, x + w, y + h]
+        except (KeyError, TypeError, ValueError):
+            box = [math.nan] * 4  # matches nothing
+        for file_name in files.get(typed(a.get('image_id')), []):
+            reference[_instance_key(
+                file_name, names.get(typed(a.get('category_id'))),
+                a.get('iscrowd', 0) == 1, box,
+                a.get('segmentation'))] += 1
+    loaded = Counter()
+    for i in range(len(dataset)):
+        info = dataset.get_data_info(i)
+        file_name = info['img_path']  # absolute for mutated images
+        if file_name.startswith(image_dir):
+            file_name = osp.relpath(file_name, image_dir)
+        for inst in info['instances']:
+            loaded[_instance_key(file_name, classes[inst['bbox_label']],
+                                 inst['ignore_flag'], inst['bbox'],
+                                 inst.get('mask'))] += 1
+    problems = [
+        f'loaded instance matches no annotation: {key[:4]}'
+        for key in (loaded - reference)
+    ]
+    report = getattr(dataset, 'load_report', None) or {}
+    dropped = sum(report.get('drops', {}).values())
+    filtered = report.get('filtered_instances', 0)
+    lost = len(coco['annotations']) - sum(loaded.values())
+    if lost != dropped + filtered:
+        problems.append(
+            f'{lost} of {len(coco["annotations"])} annotations not loaded, '
+            f'{dropped} logged as dropped and {filtered} left out by '
+            f'filter_cfg')
+    missing = len(coco['images']) - len(dataset)
+    if missing != report.get('filtered_images', 0):
+        problems.append(
+            f'{missing} of {len(coco["images"])} images not loaded, '
+            f'{report.get("filtered_images", 0)} counted as left out by '
+            f'filter_cfg')
+    return problems
+
+
+def run_variant(model, dataset_cfg: dict, ann_file: str,
+                paired: bool = False) -> dict:
+    """Dataset (audited) + pipeline + one forward/backward.
+
+    Args:
+        paired (bool): Read with ``CBNetPairedFoggyDataset`` and
+            :data:`PAIRED_PIPELINE` instead, without the training step.
+
+    Returns:
+        dict: ``outcome`` (``'ok'``, ``'logged drop'`` or ``'silent'``)
+        and ``problems`` (of :func:`audit`); errors are raised.
+    """
     cfg = copy.deepcopy(dataset_cfg)
     cfg.ann_file = ann_file
+    if paired:
+        cfg.update(type='CBNetPairedFoggyDataset', beta=BETA,
+                   pipeline=PAIRED_PIPELINE)
     dataset = DATASETS.build(cfg)
+    dataset.full_init()
+    problems = audit(dataset, ann_file, dataset.data_prefix['img'])
     items = [dataset[i] for i in range(len(dataset))]
-    if not items:
-        return 'ok'  # everything filtered out: nothing to train on
-    data = model.data_preprocessor(pseudo_collate(items), True)
-    model.zero_grad()
-    losses = model(**data, mode='loss')
-    total, log_vars = model.parse_losses(losses)
-    bad = [k for k, v in log_vars.items() if not torch.isfinite(v).all()]
-    if bad:
-        raise FloatingPointError(f'non-finite losses {bad}')
-    total.backward()
-    bad = [
-        n for n, p in model.named_parameters()
-        if p.grad is not None and not torch.isfinite(p.grad).all()
-    ]
-    if bad:
-        raise FloatingPointError(f'non-finite gradients {bad[:3]}')
-    return 'ok'
+    if items and not paired:
+        data = model.data_preprocessor(pseudo_collate(items), True)
+        model.zero_grad()
+        losses = model(**data, mode='loss')
+        total, log_vars = model.parse_losses(losses)
+        bad = [k for k, v in log_vars.items()
+               if not torch.isfinite(v).all()]
+        if bad:
+            raise FloatingPointError(f'non-finite losses {bad}')
+        total.backward()
+        bad = [
+            n for n, p in model.named_parameters()
+            if p.grad is not None and not torch.isfinite(p.grad).all()
+        ]
+        if bad:
+            raise FloatingPointError(f'non-finite gradients {bad[:3]}')
+    if problems:
+        return dict(outcome='silent', problems=problems)
+    drops = (getattr(dataset, 'load_report', None) or {}).get('drops')
+    return dict(outcome='logged drop' if drops else 'ok', problems=[])
+
+
+def _vm_bytes() -> int:
+    """This process's virtual memory size (Linux), 0 if unknown."""
+    try:
+        with open('/proc/self/status') as f:
+            for line in f:
+                if line.startswith('VmSize:'):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def _child(conn, model, dataset_cfg, ann_file, mutated, memory_gb,
+           paired):
+    """Run one variant in a forked process; send its result."""
+    if memory_gb:
+        limit = _vm_bytes() + int(memory_gb * 2**30)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    try:
+        result = run_variant(model, dataset_cfg, ann_file, paired)
+    except BaseException as err:  # noqa: B902  (the point of the sweep)
+        result = dict(
+            outcome=classify(err, mutated, ann_file),
+            error=f'{type(err).__name__}: {err}'[:500],
+            where=traceback.format_exception(err)[-2][:300])
+    conn.send(result)
+    conn.close()
+
+
+def run_isolated(model, dataset_cfg: dict, ann_file: str, mutated: str,
+                 timeout: float = 600, memory_gb: float = 4,
+                 paired: bool = False) -> dict:
+    """:func:`run_variant` (and :func:`classify`) in a forked child: a
+    segfault, a kill or a hang there is a ``crash`` outcome here."""
+    ctx = multiprocessing.get_context('fork')
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(send, model, dataset_cfg,
+                                            ann_file, mutated, memory_gb,
+                                            paired))
+    proc.start()
+    send.close()
+    result = None
+    if recv.poll(timeout):
+        try:
+            result = recv.recv()
+        except EOFError:  # the child died without a word
+            pass
+    proc.join(5 if result is not None else 0)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+    if result is None:
+        code = proc.exitcode
+        why = f'killed by signal {-code}' if code and code < 0 else \
+            f'exit code {code}' if code is not None else 'timed out'
+        result = dict(outcome='crash', error=f'child process {why}',
+                      where='')
+    return result
 
 
 def raised_in_package(err: BaseException) -> bool:
@@ -298,49 +614,69 @@ def classify(err: BaseException, mutated: str, ann_file: str) -> str:
 
 def sweep(data_root: str, variants: int, seed: int, num_images: int,
           scale: Tuple[int, int], work: str,
-          mutations: List[str] = None) -> dict:
+          mutations: List[str] = None, isolate: bool = True,
+          memory_gb: float = 4) -> dict:
     """Run ``variants`` random variants (mutations cycled, random details).
 
+    Args:
+        isolate (bool): Each variant in a forked child (see
+            :func:`run_isolated`); False runs them in this process.
+        memory_gb (float): The child's address space beyond the parent's.
+
     Returns:
-        dict: ``tried``, ``outcomes`` (Counter), ``per_mutation`` and
-        ``crashes`` (mutation, variant, error).
+        dict: ``tried``, ``outcomes`` (count per outcome of
+        :data:`OUTCOMES`), ``per_mutation``, ``silent`` (mutation,
+        variant, problems) and ``crashes`` (mutation, variant, error).
     """
     mutations = mutations or MUTATIONS
     model, dataset_cfg = build(data_root, scale)
     rng = np.random.default_rng(seed)
     per_mutation: Dict[str, Counter] = defaultdict(Counter)
-    crashes, outcomes = [], Counter()
+    crashes, silent, outcomes = [], [], Counter()
     for i in range(variants):
         name = mutations[i % len(mutations)]
         out_dir = osp.join(work, f'{i:04d}_{name}')
         ann_file, mutated = make_variant(data_root, out_dir, name,
                                          num_images, rng)
-        try:
-            outcome = run_variant(model, dataset_cfg, ann_file)
-        except Exception as err:  # noqa: B902  (the point of the sweep)
-            outcome = classify(err, mutated, ann_file)
-            if outcome == 'crash':
-                crashes.append(dict(
-                    mutation=name, variant=out_dir,
-                    error=f'{type(err).__name__}: {err}'[:500],
-                    where=traceback.format_exception(err)[-2][:300]))
+        paired = name in FOGGY_MUTATIONS
+        if isolate:
+            result = run_isolated(model, dataset_cfg, ann_file, mutated,
+                                  memory_gb=memory_gb, paired=paired)
+        else:
+            try:
+                result = run_variant(model, dataset_cfg, ann_file, paired)
+            except Exception as err:  # noqa: B902  (the point of the sweep)
+                result = dict(outcome=classify(err, mutated, ann_file),
+                              error=f'{type(err).__name__}: {err}'[:500],
+                              where=traceback.format_exception(err)[-2]
+                              [:300])
+        outcome = result['outcome']
+        if outcome == 'crash':
+            crashes.append(dict(mutation=name, variant=out_dir,
+                                error=result['error'],
+                                where=result['where']))
+        elif outcome == 'silent':
+            silent.append(dict(mutation=name, variant=out_dir,
+                               problems=result['problems']))
         per_mutation[name][outcome] += 1
         outcomes[outcome] += 1
         shutil.rmtree(out_dir, ignore_errors=True)
-    return dict(tried=variants, outcomes=dict(outcomes),
+    return dict(tried=variants,
+                outcomes={k: outcomes.get(k, 0) for k in OUTCOMES},
                 per_mutation={k: dict(v) for k, v in per_mutation.items()},
-                crashes=crashes)
+                silent=silent, crashes=crashes)
 
 
 def markdown(result: dict) -> str:
-    rows = ['| mutation | tried | ok | clear error | crash |',
-            '|---|---|---|---|---|']
+    """One row per mutation and a total: tries and count per outcome."""
+    rows = ['| mutation | tried | ' + ' | '.join(OUTCOMES) + ' |',
+            '|---|---|' + '---|' * len(OUTCOMES)]
     for name, c in sorted(result['per_mutation'].items()):
-        rows.append(f'| {name} | {sum(c.values())} | {c.get("ok", 0)} | '
-                    f'{c.get("clear error", 0)} | {c.get("crash", 0)} |')
+        rows.append(f'| {name} | {sum(c.values())} | ' + ' | '.join(
+            str(c.get(k, 0)) for k in OUTCOMES) + ' |')
     o = result['outcomes']
-    rows.append(f'| **total** | {result["tried"]} | {o.get("ok", 0)} | '
-                f'{o.get("clear error", 0)} | {o.get("crash", 0)} |')
+    rows.append(f'| **total** | {result["tried"]} | ' + ' | '.join(
+        str(o.get(k, 0)) for k in OUTCOMES) + ' |')
     return '\n'.join(rows)
 
 
@@ -354,6 +690,11 @@ def parse_args():
                         help='training images per variant')
     parser.add_argument('--scale', type=int, nargs=2, default=(128, 64),
                         help='Resize scale (w h) of the pipeline')
+    parser.add_argument('--memory-gb', type=float, default=4,
+                        help='address space a variant may use beyond the '
+                        "sweep's own (its child process)")
+    parser.add_argument('--mutations', nargs='+', choices=MUTATIONS,
+                        help='only these (default: all, cycled)')
     parser.add_argument('--out', default='work_dirs/fuzz_inputs.json')
     return parser.parse_args()
 
@@ -373,14 +714,17 @@ def main():
             convert(root)
         start = time.time()
         result = sweep(root, args.variants, args.seed, args.images,
-                       tuple(args.scale), osp.join(tmp, 'variants'))
+                       tuple(args.scale), osp.join(tmp, 'variants'),
+                       mutations=args.mutations, memory_gb=args.memory_gb)
         result['seconds'] = round(time.time() - start, 1)
     print(markdown(result))
-    print(f'\n{result["tried"]} inputs tried, '
-          f'{result["outcomes"].get("crash", 0)} crashes, '
-          f'{result["seconds"]} s')
+    o = result['outcomes']
+    print(f'\n{result["tried"]} inputs tried: ' + ', '.join(
+        f'{o[k]} {k}' for k in OUTCOMES) + f'; {result["seconds"]} s')
+    for item in result['silent']:
+        print(f'- silent, {item["mutation"]}: {"; ".join(item["problems"])}')
     for crash in result['crashes']:
-        print(f'- {crash["mutation"]}: {crash["error"]}')
+        print(f'- crash, {crash["mutation"]}: {crash["error"]}')
     os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
     with open(args.out, 'w') as f:
         json.dump(result, f, indent=1)

@@ -48,6 +48,10 @@ class CBNetLoadImageFromFile(LoadImageFromFile):
                 return None
             raise ValueError(
                 f'cannot decode image {filename}: {err!r}') from err
+        if out is not None and out.get('img') is None:
+            # MMCV's `assert img is not None` is gone under python -O
+            raise ValueError(f'cannot decode image {filename}: empty or '
+                             f'not an image file')
         if out is not None and 'height' in results and 'width' in results:
             expected = (results['height'], results['width'])
             if tuple(out['img'].shape[:2]) != expected:

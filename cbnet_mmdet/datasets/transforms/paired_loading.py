@@ -2,12 +2,13 @@
 from typing import Optional
 
 import numpy as np
-from mmcv.transforms import LoadImageFromFile
 from mmdet.registry import TRANSFORMS
+
+from .load_image_from_file import CBNetLoadImageFromFile
 
 
 @TRANSFORMS.register_module()
-class CBNetLoadPairedImageFromFile(LoadImageFromFile):
+class CBNetLoadPairedImageFromFile(CBNetLoadImageFromFile):
     """Load ``foggy_img_path`` and ``img_path`` stacked along channels.
 
     The result ``img`` is ``uint8[H, W, 6]``: the foggy image in channels
@@ -21,7 +22,9 @@ class CBNetLoadPairedImageFromFile(LoadImageFromFile):
 
     An image whose size differs from the ``height``/``width`` its
     annotations give (the dataset's data info), or a foggy image of another
-    size than its clear twin, raises ``ValueError`` naming the files.
+    size than its clear twin, raises ``ValueError`` naming the files; a
+    missing, empty, truncated or undecodable image (foggy or clear) raises
+    the errors of :class:`CBNetLoadImageFromFile` naming it.
 
     Required keys: ``img_path`` (clear), ``foggy_img_path``.
     Added keys: ``img``, ``img_shape``, ``ori_shape``.

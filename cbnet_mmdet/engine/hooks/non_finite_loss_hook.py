@@ -1,12 +1,17 @@
-"""Stop training at the first NaN/Inf loss, saying where it happened."""
+"""Stop training at the first NaN/Inf loss or blow-up, saying where it
+happened and which checkpoint is clean."""
 import math
-from typing import Dict, List, Optional, Sequence
+import statistics
+from collections import deque
+from typing import Deque, Dict, List, Optional, Sequence, Tuple
 
 import torch
 from mmdet.registry import HOOKS
 from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
+
+from cbnet_mmdet.utils.checkpoint_tools import intact_checkpoints
 
 #: Image paths of the offending batch listed in the error message.
 MAX_LISTED = 8
@@ -51,43 +56,122 @@ def batch_image_paths(data_batch: Optional[dict]) -> List[str]:
     return paths
 
 
+def blowup_onset(history: Sequence[Tuple[int, float]],
+                 factor: float) -> Optional[int]:
+    """First iteration of ``history`` whose value exceeds ``factor`` times
+    the (positive) median of the values before it (None: none does).
+
+    Args:
+        history (Sequence[tuple[int, float]]): ``(iteration, value)`` in
+            order.
+        factor (float): The blow-up factor.
+    """
+    for i in range(1, len(history)):
+        base = statistics.median(v for _, v in history[:i])
+        if base > 0 and history[i][1] > factor * base:
+            return history[i][0]
+    return None
+
+
+class DivergenceError(FloatingPointError):
+    """A finite loss, gradient norm or weight norm blew up (a
+    ``FloatingPointError``, like the NaN/Inf case)."""
+
+
 @HOOKS.register_module()
 class CBNetNonFiniteLossHook(Hook):
-    """Raise ``FloatingPointError`` on a NaN/Inf loss or parameter.
+    """Raise ``FloatingPointError`` on a NaN/Inf loss or parameter, or on a
+    finite blow-up.
 
     After every training iteration the logged losses (the dict that
     ``train_step`` returns) are checked; every ``param_interval``
     iterations the model's floating-point parameters are checked too (a
     finite loss can still give NaN gradients, e.g. a square root at 0).
-    The error names the iteration (1-based, as in the log), the epoch and
-    batch index, every non-finite loss with its value, and the images of
-    the batch, e.g.::
+    Finite divergence is caught against running statistics:
+
+    * the total loss (``loss``), and the gradient norm when the optimiser
+      wrapper logs one (``clip_grad``: ``train/grad_norm``), above
+      ``blowup_factor`` times the median of the last ``window``
+      iterations (once ``min_history`` values are known; not while that
+      median is <= 0);
+    * the parameters' total norm (every ``param_interval``) above
+      ``blowup_factor`` times its value when training started.
+
+    A ``DivergenceError`` (a ``FloatingPointError``) is raised then. The
+    error names the iteration (1-based, as in the log), the epoch and
+    batch index, the offending values, the images of the batch and the
+    last checkpoint of the work dir that is really clean, e.g.::
 
         FloatingPointError: non-finite loss at iteration 17 (epoch 2,
-        batch 3): s2.loss_mask=nan, loss=nan; batch images: a.png, b.png
+        batch 3): s2.loss_mask=nan, loss=nan; batch images: a.png, b.png.
+        The weights of this step were not saved; the last clean checkpoint
+        is work_dirs/x/epoch_1.pth (iteration 12): resume with --resume
+        work_dirs/x/epoch_1.pth. Lower the lr or check the data.
+
+    "Clean" looks back: when the recent losses show a blow-up that began
+    at iteration ``s`` (a loss above ``blowup_factor`` times the median
+    before it), the weights of iteration ``s - 1`` are already suspect, so
+    checkpoints of iteration ``s - 2`` and earlier are clean; for bad
+    parameters, those of the last check that found them finite. Later
+    checkpoints, written during the blow-up, are named as unsafe.
 
     The hook runs before ``CheckpointHook`` (priority ``ABOVE_NORMAL``), so
-    weights corrupted by the offending step are never saved: the last
-    checkpoint on disk is clean, and ``tools/train.py --resume`` restarts
-    from it. In distributed training the rank that sees the NaN raises and
-    the launcher (torchrun) stops the others.
+    the weights of the offending step are never saved. In distributed
+    training the rank that sees the problem raises and the launcher
+    (torchrun) stops the others.
 
     With ``AmpOptimWrapper`` only the losses and the parameters are
-    checked, never the gradients: dynamic loss scaling produces infinite
-    gradients on purpose and skips those steps.
+    checked for NaN/Inf, never the gradients: dynamic loss scaling
+    produces infinite gradients on purpose and skips those steps (an
+    infinite logged gradient norm is left out of the running median).
 
     Args:
         param_interval (int): Check the parameters every this many
             iterations; 0 disables the check. Defaults to 50.
+        blowup_factor (float): How many times the running median a loss
+            or gradient norm (and the first parameter norm) may reach; 0
+            disables the finite checks. Defaults to 100.
+        window (int): Iterations of the running median. Defaults to 50.
+        min_history (int): Iterations seen before the finite checks start
+            (the look-back for the clean checkpoint covers them). Defaults
+            to 1: from the second iteration on, a loss 100 x the first is
+            caught before the median takes the blow-up in.
     """
 
     priority = 'ABOVE_NORMAL'
 
-    def __init__(self, param_interval: int = 50) -> None:
+    def __init__(self,
+                 param_interval: int = 50,
+                 blowup_factor: float = 100.,
+                 window: int = 50,
+                 min_history: int = 1) -> None:
         if not isinstance(param_interval, int) or param_interval < 0:
             raise ValueError('CBNetNonFiniteLossHook: param_interval must '
                              f'be an int >= 0, got {param_interval!r}')
+        if not isinstance(blowup_factor, (int, float)) or not (
+                blowup_factor == 0 or blowup_factor > 1):
+            raise ValueError('CBNetNonFiniteLossHook: blowup_factor must '
+                             f'be 0 (off) or > 1, got {blowup_factor!r}')
+        for name, value in (('window', window), ('min_history',
+                                                 min_history)):
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f'CBNetNonFiniteLossHook: {name} must be '
+                                 f'an int >= 1, got {value!r}')
         self.param_interval = param_interval
+        self.blowup_factor = float(blowup_factor)
+        self.window = window
+        self.min_history = min_history
+        self.history: Dict[str, Deque[Tuple[int, float]]] = {}
+        self.first_param_norm: Optional[float] = None
+        self.last_params_ok = 0  # iterations done when last found finite
+        self.grad_norms_seen = 0  # length of the logged grad-norm history
+
+    def before_train(self, runner: Runner) -> None:
+        """Take the parameters' norm at the start (after a resume or
+        ``load_from``) as the reference of the blow-up check."""
+        norm = self.parameter_check(runner.model)[1]
+        if math.isfinite(norm):
+            self.first_param_norm = norm
 
     @staticmethod
     def _where(runner: Runner, batch_idx: int) -> str:
@@ -104,6 +188,64 @@ class CBNetNonFiniteLossHook(Hook):
         return f'; batch images: {listed}' + (f' (+{more})' if more > 0
                                               else '')
 
+    def _onset(self, params_bad: bool = False) -> int:
+        """First suspect iteration (1-based) given the recent history."""
+        onsets = [
+            blowup_onset(list(h), self.blowup_factor or math.inf)
+            for h in self.history.values()
+        ]
+        onsets = [o for o in onsets if o is not None]
+        if params_bad:
+            onsets.append(self.last_params_ok + 2)
+        return min(onsets, default=math.inf)
+
+    def clean_checkpoint(self, runner: Runner, now: int,
+                         params_bad: bool = False) -> str:
+        """The sentence naming the last clean checkpoint of the work dir.
+
+        Args:
+            runner (Runner): Its ``work_dir`` is searched.
+            now (int): The failing iteration (1-based).
+            params_bad (bool): The parameters, not a loss, failed.
+        """
+        onset = min(self._onset(params_bad), now)
+        clean_upto = onset - 2  # weights of iteration onset-1 are suspect
+        work_dir = getattr(runner, 'work_dir', None)
+        found = intact_checkpoints(work_dir) if isinstance(work_dir,
+                                                           str) else []
+        clean = [(p, it) for p, it in found if it <= clean_upto]
+        unsafe = [p for p, it in found if it > clean_upto]
+        began = (f'the blow-up began at iteration {onset}; '
+                 if onset < now else '')
+        text = f' The weights of this step were not saved; {began}'
+        if clean:
+            text += (f'the last clean checkpoint is {clean[0][0]} '
+                     f'(iteration {clean[0][1]}): resume with --resume '
+                     f'{clean[0][0]}')
+        else:
+            text += ('no checkpoint of the work dir is clean: start again')
+        if unsafe:
+            text += (f'; do NOT resume from {", ".join(unsafe)} (written '
+                     f'after the weights went bad; a plain --resume would)')
+        return text + '. Lower the lr or check the data.'
+
+    def _record(self, key: str, it: int, value: float, runner: Runner,
+                batch_idx: int, data_batch: Optional[dict]) -> None:
+        """Add a value to its history; raise when it blew up."""
+        history = self.history.setdefault(key, deque(maxlen=self.window))
+        if self.blowup_factor and len(history) >= self.min_history:
+            median = statistics.median(v for _, v in history)
+            if median > 0 and value > self.blowup_factor * median:
+                seen = len(history)
+                history.append((it, value))
+                raise DivergenceError(
+                    f'{key} blew up at {self._where(runner, batch_idx)}: '
+                    f'{value:.4g} is more than {self.blowup_factor:g} x the '
+                    f'median {median:.4g} of the last {seen} iterations'
+                    f'{self._images(data_batch)}.'
+                    + self.clean_checkpoint(runner, it))
+        history.append((it, value))
+
     def after_train_iter(self,
                          runner: Runner,
                          batch_idx: int,
@@ -112,31 +254,86 @@ class CBNetNonFiniteLossHook(Hook):
         """Check the losses (and the parameters every ``param_interval``).
 
         Raises:
-            FloatingPointError: A loss or a parameter is NaN or infinite.
+            FloatingPointError: A loss or a parameter is NaN or infinite,
+                or (``DivergenceError``) a loss, gradient norm or the
+                parameters' norm blew up.
         """
-        bad = non_finite_items(outputs or {})
+        it = runner.iter + 1
+        outputs = outputs or {}
+        bad = non_finite_items(outputs)
         if bad:
             listed = ', '.join(f'{k}={v}' for k, v in bad.items())
             raise FloatingPointError(
                 f'non-finite loss at {self._where(runner, batch_idx)}: '
-                f'{listed}{self._images(data_batch)}. The weights of this '
-                f'step were not saved; lower the lr, check the data, or '
-                f'resume from the last checkpoint with --resume.')
+                f'{listed}{self._images(data_batch)}.'
+                + self.clean_checkpoint(runner, it))
+        for key, value in self._running_values(runner, outputs):
+            self._record(key, it, value, runner, batch_idx, data_batch)
         if self.param_interval and self.every_n_train_iters(
                 runner, self.param_interval):
-            names = self.non_finite_parameters(runner.model)
-            if names:
-                raise FloatingPointError(
-                    f'non-finite parameters after '
-                    f'{self._where(runner, batch_idx)} (finite losses, so '
-                    f'the gradients were not): {", ".join(names[:5])}'
-                    f'{" ..." if len(names) > 5 else ""} '
-                    f'({len(names)} tensors){self._images(data_batch)}')
+            self._check_parameters(runner, it, batch_idx, data_batch)
+
+    def _running_values(self, runner: Runner,
+                        outputs: dict) -> List[Tuple[str, float]]:
+        """The total loss and this iteration's gradient norm, if logged."""
+        values = []
+        loss = outputs.get('loss')
+        if isinstance(loss, torch.Tensor) and loss.numel() == 1:
+            values.append(('loss', float(loss.detach())))
+        elif isinstance(loss, float):
+            values.append(('loss', loss))
+        hub = getattr(runner, 'message_hub', None)
+        scalars = getattr(hub, 'log_scalars', None)
+        if isinstance(scalars, dict) and 'train/grad_norm' in scalars:
+            buffer = scalars['train/grad_norm']
+            logged = len(buffer.data[0])
+            norm = float(buffer.current())
+            # an infinite norm is AMP's loss scaling at work: step skipped
+            if logged != self.grad_norms_seen and math.isfinite(norm):
+                values.append(('grad_norm', norm))
+            self.grad_norms_seen = logged
+        return values
+
+    def _check_parameters(self, runner: Runner, it: int, batch_idx: int,
+                          data_batch: Optional[dict]) -> None:
+        names, norm = self.parameter_check(runner.model)
+        if names:
+            raise FloatingPointError(
+                f'non-finite parameters after '
+                f'{self._where(runner, batch_idx)} (finite losses, so '
+                f'the gradients were not): {", ".join(names[:5])}'
+                f'{" ..." if len(names) > 5 else ""} '
+                f'({len(names)} tensors){self._images(data_batch)}.'
+                + self.clean_checkpoint(runner, it, params_bad=True))
+        if self.first_param_norm is None:
+            self.first_param_norm = norm
+        elif self.blowup_factor and norm > self.blowup_factor * max(
+                self.first_param_norm, 1e-12):
+            raise DivergenceError(
+                f'parameter norm blew up after '
+                f'{self._where(runner, batch_idx)}: {norm:.4g} is more than '
+                f'{self.blowup_factor:g} x its value at the start '
+                f'{self.first_param_norm:.4g}{self._images(data_batch)}.'
+                + self.clean_checkpoint(runner, it, params_bad=True))
+        self.last_params_ok = it
+
+    @classmethod
+    def non_finite_parameters(cls, model: torch.nn.Module) -> Sequence[str]:
+        """Names of the floating-point parameters holding a NaN or Inf.
+
+        Args:
+            model (nn.Module): The (possibly DDP-wrapped) model.
+
+        Returns:
+            list[str]: Parameter names, empty when all are finite.
+        """
+        return cls.parameter_check(model)[0]
 
     @staticmethod
     @torch.no_grad()
-    def non_finite_parameters(model: torch.nn.Module) -> Sequence[str]:
-        """Names of the floating-point parameters holding a NaN or Inf.
+    def parameter_check(
+            model: torch.nn.Module) -> Tuple[Sequence[str], float]:
+        """Non-finite parameters and the total norm of all of them.
 
         One fused reduction over all parameters (``torch._foreach_norm``:
         a tensor's norm is finite iff all its elements are), then names
@@ -146,20 +343,23 @@ class CBNetNonFiniteLossHook(Hook):
             model (nn.Module): The (possibly DDP-wrapped) model.
 
         Returns:
-            list[str]: Parameter names, empty when all are finite.
+            tuple[list[str], float]: Offending parameter names (empty when
+            all are finite) and the parameters' total L2 norm (float64;
+            ``inf`` when a norm overflows).
         """
         if is_model_wrapper(model):
             model = model.module
         named = [(n, p) for n, p in model.named_parameters()
                  if p.is_floating_point() and p.numel()]
         if not named:
-            return []
+            return [], 0.0
         norms = torch.stack(torch._foreach_norm([p for _, p in named]))
         finite = torch.isfinite(norms)
+        total = float(norms.double().norm())
         if bool(finite.all()):
-            return []
+            return [], total
         # an overflowing norm of finite values is not an error
         return [
             n for (n, p), ok in zip(named, finite.tolist())
             if not ok and not bool(torch.isfinite(p).all())
-        ]
+        ], total

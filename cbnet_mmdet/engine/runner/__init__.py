@@ -1,0 +1,3 @@
+from .cbnet_runner import CBNetRunner
+
+__all__ = ['CBNetRunner']
