@@ -31,3 +31,23 @@ def test_generate_cli(tmp_path, capsys):
     with open(root / 'generator_record.json') as f:
         record = json.load(f)
     assert record['density'] == 0.5 and record['min_height_px'] == 6
+
+
+def test_preset_fills_what_is_not_given():
+    spec = importlib.util.spec_from_file_location('gen_tool_p', TOOL)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
+    bench = DATA_PRESETS['bench']
+    args = tool.parse_args(['out', '--preset', 'bench'])
+    for key, value in bench.items():
+        assert tuple(getattr(args, key)) == value if key == 'img_size' \
+            else getattr(args, key) == value, key
+    args = tool.parse_args(['out', '--preset', 'bench', '--num-train', '3',
+                            '--size', '64', '128'])
+    assert args.num_train == 3 and args.img_size == (64, 128)
+    assert args.num_val == bench['num_val']
+    # no preset: the generator's own defaults
+    args = tool.parse_args(['out'])
+    assert (args.num_train, args.num_val, tuple(args.img_size),
+            args.min_height_px) == (40, 10, (256, 512), 8.0)
