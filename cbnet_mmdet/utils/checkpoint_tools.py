@@ -26,12 +26,13 @@ import hashlib
 import os
 import os.path as osp
 import pickle
-import zipfile
 from typing import List, Optional, Sequence, Tuple
 
 import torch
 from mmengine.config import Config
 from mmengine.runner import CheckpointLoader
+
+from .checkpoint_file import check_checkpoint_file, refused
 
 #: What a published checkpoint keeps (MMDetection's default).
 PUBLISH_KEYS = ('meta', 'state_dict')
@@ -67,30 +68,14 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
         pickle.UnpicklingError: The file asks for code outside the
             allow-list (refused, as a malicious file must be).
     """
-    if not osp.isfile(path):
-        raise FileNotFoundError(f'checkpoint not found: {path}')
-    size = osp.getsize(path)
-    if size == 0:
-        raise ValueError(f'checkpoint {path} is empty (0 bytes): an '
-                         f'interrupted save? Use an earlier checkpoint')
+    check_checkpoint_file(path)
     with open(path, 'rb') as f:
-        head = f.read(4)
-    if head[:2] == b'PK' and not zipfile.is_zipfile(path):
-        raise ValueError(
-            f'checkpoint {path} is truncated or damaged ({size} bytes, no '
-            f'zip directory at its end): an interrupted save or copy? Use '
-            f'an earlier checkpoint')
-    if head[:2] != b'PK' and head[:1] != b'\x80':
-        raise ValueError(
-            f'{path} is not a PyTorch checkpoint (it starts with '
-            f'{head!r}, neither a zip archive nor a pickle)')
+        head = f.read(2)
     try:
         checkpoint = torch.load(path, map_location='cpu', weights_only=True,
                                 mmap=mmap and head[:2] == b'PK')
     except pickle.UnpicklingError as err:
-        raise pickle.UnpicklingError(
-            f'checkpoint {path} refused by weights-only loading: {err}'
-        ) from err
+        raise refused(path, err) from None
     except (RuntimeError, EOFError, OSError, ValueError) as err:
         raise ValueError(f'checkpoint {path} is truncated or damaged: '
                          f'{err}') from err
