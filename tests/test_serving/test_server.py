@@ -183,6 +183,33 @@ def test_route_cli_over_a_folder(server, demo_ckpt, frames, tmp_path):
     assert all('bboxes' in r['prediction'] for r in recs)
 
 
+def test_load_test_cli(server, tmp_path):
+    """tools/serve/load_test.py (the docs' measurement) on a small image."""
+    sys.path.insert(0, osp.join(ROOT, 'tools', 'serve'))
+    try:
+        import load_test
+    finally:
+        sys.path.pop(0)
+    out = tmp_path / 'load.json'
+    load_test.main([server['url'], '--size', '64', '128', '--concurrency',
+                    '1', '2', '--requests', '2', '--out', str(out)])
+    levels = json.load(open(out))['levels']
+    assert [lv['concurrency'] for lv in levels] == [1, 2]
+    assert all(lv['errors'] == 0 and lv['p50_s'] > 0 for lv in levels)
+
+
+def wait_until_down(url, timeout_s=30):
+    """Ray's HTTP proxy can outlive the killed driver by a moment."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            requests.get(url + '/health', timeout=1)
+        except requests.RequestException:
+            return
+        time.sleep(0.2)
+    pytest.fail(f'{url} still answers {timeout_s} s after the kill')
+
+
 def test_server_killed_mid_run_every_frame_answered(server, local, frames):
     """Must stay the module's last test: it kills the server."""
     router = EdgeRouter(local, RouterConfig(server_url=server['url'],
@@ -192,6 +219,7 @@ def test_server_killed_mid_run_every_frame_answered(server, local, frames):
         if i == 2:
             os.killpg(server['proc'].pid, signal.SIGKILL)
             server['proc'].wait(30)
+            wait_until_down(server['url'])
         recs.append(router(img, name))
     assert [r['frame'] for r in recs] == [n for n, _ in frames]
     assert [r['where'] for r in recs[:2]] == ['server'] * 2
