@@ -119,6 +119,13 @@ pipq mmdet==3.3.0 -r "$ROOT/requirements/runtime.txt"
 say "openmim 0.3.9 (without opendatalab: pip will say openmim 'requires opendatalab', as intended) and test tools"
 pipq --no-deps openmim==0.3.9
 pipq -r "$ROOT/requirements/tests.txt"
+say "serving extra: Ray Serve (requirements/serve.txt; the serving tests need it)"
+pipq -r "$ROOT/requirements/serve.txt"
+# cityscapesScripts pulls the `typing` 3.7 backport (a typing.py in
+# site-packages). Ray starts its workers with site-packages ahead of the
+# standard library, where that file breaks `import ray`; Python 3.11 has
+# typing built in, so the backport goes.
+python -m pip uninstall -y -q typing 2>/dev/null || true
 install_project
 
 python - <<'PY'
@@ -126,7 +133,7 @@ import importlib.metadata as m
 import cbnet_mmdet, mmcv.ops, torch  # noqa: F401
 print('  ' + ', '.join(f'{p} {m.version(p)}' for p in
       ('torch', 'mmcv', 'mmengine', 'mmdet', 'cbnet_mmdet', 'setuptools',
-       'numpy', 'openmim')))
+       'numpy', 'openmim', 'ray')))
 PY
 stamp_now | sha256sum | cut -d' ' -f1 >"$STAMP"
 say "done: activate with  . $VENV/bin/activate"
