@@ -21,6 +21,14 @@ Built-in sets (configs under configs/, demo-size, one MiT-B0 trunk):
   speed     the speed settings of issue 18: light neck, 3 / 7 stacks,
             1000 proposals at test (a test-time variant)
   rpn       CBNet's Cascade RPN vs RPNHead vs MMDet's CascadeRPNHead
+  realfog   box-only recipes on real fog (a VOC folder: DAWN, RTTS):
+            CBNet's box path, Cascade R-CNN and YOLOX-Tiny learning on
+            fog vs the last two behind the dark channel prior or the
+            learned dehazer; tested on the folder's val split, no betas
+
+Recipes whose configs set ``test_condition`` (real data, like the realfog
+set) take ``--data-root`` as their data (default: the config's) and are
+tested on their own test set only: no ``--betas``.
 
 Examples::
 
@@ -32,11 +40,14 @@ Examples::
     python tools/analysis_tools/compare_recipes.py \
         --configs mine=configs/my.py baseline=configs/base.py \
         --data-root data/cityscapes --iters 2000 --batch-size 8
+    # real fog: DAWN's fog/haze photos (docs/robustness.md, "Real fog")
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set realfog --data-root data/dawn_fog --threads 1
 """
 import argparse
 import sys
 
-from mmengine.config import DictAction
+from mmengine.config import Config, DictAction
 
 
 def parse_args(argv=None):
@@ -50,9 +61,11 @@ def parse_args(argv=None):
     parser.add_argument('--configs', nargs='+', default=[],
                         metavar='[NAME=]CONFIG',
                         help='recipes to compare (added after --set)')
-    parser.add_argument('--data-root', default='data/cityscapes_like',
+    parser.add_argument('--data-root', default=None,
                         help='dataset in the Cityscapes layout with '
-                        'converted annotations and leftImg8bit_foggy')
+                        'converted annotations and leftImg8bit_foggy '
+                        '(default data/cityscapes_like); for real-data '
+                        "recipes their data (default: the config's)")
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--iters', type=int, default=120,
                         help='training iterations per run (0: untrained)')
@@ -61,9 +74,9 @@ def parse_args(argv=None):
                         help="base lr (default: each config's)")
     parser.add_argument('--warmup-iters', type=int, default=30)
     parser.add_argument('--num-workers', type=int, default=1)
-    parser.add_argument('--betas', type=float, nargs='*',
-                        default=[0.005, 0.01, 0.02],
-                        help='fog densities (1/m) to test on')
+    parser.add_argument('--betas', type=float, nargs='*', default=None,
+                        help='fog densities (1/m) to test on (default '
+                        '0.005 0.01 0.02; none for real-data recipes)')
     parser.add_argument('--work-dir', default=None,
                         help='default: work_dirs/compare/<set or custom>')
     parser.add_argument('--threads', type=int, default=None,
@@ -88,13 +101,20 @@ def main(argv=None) -> dict:
     if args.threads:
         torch.set_num_threads(args.threads)
     recipes = rc.resolve_recipes(args.set, args.configs)
+    real = rc.reference_condition(recipes) != 'clear'
+    betas, data_root = args.betas, args.data_root
+    if betas is None:
+        betas = [] if real else [0.005, 0.01, 0.02]
+    if data_root is None:
+        data_root = Config.fromfile(recipes[0][1]).data_root if real \
+            else 'data/cityscapes_like'
     work_dir = args.work_dir or osp.join('work_dirs', 'compare',
                                          args.set or 'custom')
     budget = rc.Budget(
         iters=args.iters, batch_size=args.batch_size, lr=args.lr,
         warmup_iters=args.warmup_iters, num_workers=args.num_workers)
-    record = rc.compare(recipes, args.seeds, budget, args.data_root,
-                        args.betas, work_dir, args.cfg_options,
+    record = rc.compare(recipes, args.seeds, budget, data_root,
+                        betas, work_dir, args.cfg_options,
                         set_name=args.set)
     print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
           'compare.png')
