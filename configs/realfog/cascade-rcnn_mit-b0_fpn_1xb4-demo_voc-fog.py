@@ -13,8 +13,6 @@ model = dict(
 # the real-fog data in place of the demo's (see _base_/voc-fog_box.py)
 data_root = _base_.fog_data_root
 train_dataloader = dict(_delete_=True, **_base_.fog_train_dataloader)
-val_dataloader = dict(_delete_=True, **_base_.fog_test_dataloader)
-test_dataloader = val_dataloader
-val_evaluator = _base_.fog_evaluator
-test_evaluator = val_evaluator
-test_condition = 'real fog'
+val_dataloader = test_dataloader = dict(
+    _delete_=True, **_base_.fog_test_dataloader)
+val_evaluator = test_evaluator = _base_.fog_evaluator

@@ -1,6 +1,7 @@
 """Real fog: box evaluation of a checkpoint on a VOC folder (AP-drop tool,
 ``test_condition``), the harness's real-data conditions, and the
 ``realfog`` set end to end on a tiny generated VOC folder."""
+import glob
 import importlib.util
 import json
 import os.path as osp
@@ -8,11 +9,8 @@ import os.path as osp
 import numpy as np
 import pytest
 import torch
-from mmdet.models.detectors.base import BaseDetector
 from mmdet.registry import MODELS
 from mmengine.config import Config
-from mmengine.structures import InstanceData
-from torch import nn
 
 from cbnet_mmdet.datasets.synthetic.voc_folder import tiny_fog_folder
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
@@ -21,38 +19,20 @@ from cbnet_mmdet.evaluation.ap_drop import ap_drop, default_betas, real_fog_cfg
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
+RECIPES = dict(rc.RECIPE_SETS['realfog'])
+RECIPES = {n: osp.join(ROOT, 'configs', p) for n, p in RECIPES.items()}
 DATASET_CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
                        'cityscapes_instance.py')
 
 
-@MODELS.register_module(name='_CBNetTestBoxOracle', force=True)
-class _BoxOracle(BaseDetector):
-    """Predicts each image's ground-truth boxes (score 1), except those of
-    the class ``drop_class``."""
-
-    def __init__(self, data_preprocessor=None, drop_class=None):
-        super().__init__(data_preprocessor=data_preprocessor)
-        self.dummy = nn.Parameter(torch.zeros(1))
-        self.drop_class = drop_class
-
-    def predict(self, batch_inputs, batch_data_samples, rescale=True):
-        for sample in batch_data_samples:
-            gt = sample.gt_instances
-            gt = gt[gt.labels != (-1 if self.drop_class is None
-                                  else self.drop_class)]
-            sample.pred_instances = InstanceData(
-                bboxes=getattr(gt.bboxes, 'tensor', gt.bboxes),
-                labels=gt.labels, scores=torch.ones(len(gt)))
-        return batch_data_samples
-
-    def loss(self, *args, **kwargs):
-        raise NotImplementedError
-
-    def _forward(self, *args, **kwargs):
-        raise NotImplementedError
-
-    def extract_feat(self, *args, **kwargs):
-        raise NotImplementedError
+def load_tool(relpath):
+    """Import ``tools/{relpath}`` (the tools are not a package)."""
+    spec = importlib.util.spec_from_file_location(
+        'realfog_' + relpath.replace('/', '_')[:-3],
+        osp.join(ROOT, 'tools', relpath))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def oracle_cfg(cfg, root, tmp_path, drop_class=None):
@@ -60,7 +40,8 @@ def oracle_cfg(cfg, root, tmp_path, drop_class=None):
     original image) around the oracle, on ``root``, and a checkpoint."""
     rc.replace_data_root(cfg, root)
     cfg.default_scope = 'mmdet'
-    cfg.model = dict(type='_CBNetTestBoxOracle', drop_class=drop_class,
+    # the evaluation tests' oracle (conftest.py): predicts the ground truth
+    cfg.model = dict(type='_CBNetTestOracle', drop_class=drop_class,
                      data_preprocessor=dict(type='DetDataPreprocessor'))
     cfg.test_cfg = dict(type='TestLoop')
     ds = cfg.test_dataloader.dataset
@@ -117,11 +98,7 @@ def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
                            drop_class=person)
     cfg_file = str(tmp_path / 'oracle_cfg.py')
     cfg.dump(cfg_file)
-    spec = importlib.util.spec_from_file_location(
-        'ap_drop_tool', osp.join(ROOT, 'tools', 'analysis_tools',
-                                 'ap_drop.py'))
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('analysis_tools/ap_drop.py')
     table = tool.main([cfg_file, ckpt, '--real-fog', fog_root, '--out-dir',
                        str(tmp_path / 'out')])
     assert [r['condition'] for r in table['rows']] == ['real fog']
@@ -198,11 +175,7 @@ def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys):
     dehazer = Config.fromfile(osp.join(
         REALFOG, '_base_', 'dehazers.py')).fog_dehazer_checkpoint
     save_untrained_dehazer(str(tmp_path / dehazer))
-    spec = importlib.util.spec_from_file_location(
-        'compare_recipes',
-        osp.join(ROOT, 'tools', 'analysis_tools', 'compare_recipes.py'))
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'realfog', '--data-root', fog_root, '--seeds', '0',
             '--iters', '2', '--batch-size', '2', '--num-workers', '0',
             '--warmup-iters', '1', '--work-dir', str(tmp_path / 'out'),
@@ -235,6 +208,17 @@ def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys):
     assert osp.isfile(tmp_path / 'out' / 'compare.png')
     with open(tmp_path / 'out' / 'compare.json') as f:
         assert json.load(f)['summary'] == summary
+    # tools/test.py on a trained checkpoint, the config's documented way
+    test_tool = load_tool('test.py')
+    test_tool.main([
+        RECIPES['CBNet box path'],
+        str(tmp_path / 'out' / 'CBNet_box_path' / 'seed0' / 'iter_2.pth'),
+        '--work-dir', str(tmp_path / 'test'), '--cfg-options',
+        f'test_dataloader.dataset.data_root={fog_root}',
+        'test_dataloader.num_workers=0',
+        'test_dataloader.persistent_workers=False'])
+    logs = glob.glob(str(tmp_path / 'test' / '*' / '*.log'))
+    assert logs and 'coco/bbox_mAP:' in open(logs[0]).read()
     capsys.readouterr()
     again = tool.main(argv)
     assert capsys.readouterr().out.count('already done') == len(names)

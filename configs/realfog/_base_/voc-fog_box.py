@@ -58,3 +58,6 @@ fog_test_dataloader = dict(
         test_mode=True,
         pipeline=fog_test_pipeline))
 fog_evaluator = [dict(type='CocoMetric', metric='bbox')]
+# real data: the harness and the AP-drop tool test the test set as it is,
+# under this name, with no synthetic fog densities
+test_condition = 'real fog'
