@@ -96,7 +96,8 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
         prefix (str): Experiment name prefix.
 
     Returns:
-        dict[str, float]: The evaluators' metrics.
+        dict[str, float]: The evaluators' metrics; see
+        :func:`with_empty_coco_results`.
     """
     cfg = copy.deepcopy(cfg)
     cfg.load_from = checkpoint
@@ -110,7 +111,48 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
                 'param_scheduler', 'val_dataloader', 'val_cfg',
                 'val_evaluator'):
         cfg.pop(key, None)
-    return Runner.from_cfg(cfg).test()
+    return with_empty_coco_results(cfg, Runner.from_cfg(cfg).test())
+
+
+#: COCO AP keys set to 0 when a model detects nothing.
+EMPTY_AP_KEYS = ('mAP', 'mAP_50', 'mAP_75')
+
+
+def with_empty_coco_results(cfg: Config,
+                            metrics: Dict[str, float]) -> Dict[str, float]:
+    """Add AP 0 where ``CocoMetric`` reported nothing for a detection set.
+
+    MMDet's ``CocoMetric`` returns no metric at all (and logs "The testing
+    results of the whole dataset is empty") when the model kept no
+    detection on any test image, as a detector trained briefly from
+    scratch may. The average precision of no detection is 0: this sets
+    ``{prefix}/{bbox|segm}_{mAP, mAP_50, mAP_75}`` to 0.0 for each
+    ``CocoMetric`` of ``cfg.test_evaluator`` whose keys are all missing
+    (proposal metrics untouched).
+
+    Args:
+        cfg (Config): The test config.
+        metrics (dict[str, float]): ``Runner.test()``'s metrics.
+
+    Returns:
+        dict[str, float]: ``metrics`` with the zeros added.
+    """
+    metrics = dict(metrics)
+    evaluators = cfg.get('test_evaluator') or []
+    if isinstance(evaluators, dict):
+        evaluators = [evaluators]
+    for evaluator in evaluators:
+        if evaluator.get('type') != 'CocoMetric':
+            continue
+        prefix = evaluator.get('prefix') or 'coco'
+        kinds = evaluator.get('metric', 'bbox')
+        kinds = [kinds] if isinstance(kinds, str) else list(kinds)
+        for kind in kinds:
+            keys = [f'{prefix}/{kind}_{k}' for k in EMPTY_AP_KEYS]
+            if kind in ('bbox', 'segm') and \
+                    not any(k in metrics for k in keys):
+                metrics.update(dict.fromkeys(keys, 0.0))
+    return metrics
 
 
 def drop_table(metrics: Dict[str, Dict[str, float]]) -> dict:

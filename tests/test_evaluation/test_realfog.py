@@ -12,10 +12,13 @@ import torch
 from mmdet.registry import MODELS
 from mmengine.config import Config
 
-from cbnet_mmdet.datasets.synthetic.voc_folder import tiny_fog_folder
+from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
+                                                       write_voc_folder)
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
 from cbnet_mmdet.evaluation import recipe_comparison as rc
-from cbnet_mmdet.evaluation.ap_drop import ap_drop, default_betas, real_fog_cfg
+from cbnet_mmdet.evaluation.ap_drop import (ap_drop, default_betas,
+                                            real_fog_cfg,
+                                            with_empty_coco_results)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
@@ -115,6 +118,31 @@ def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
     assert [t for t in ds.pipeline if t['type'] == 'LoadAnnotations'][0][
         'with_mask'] is False
     assert 'instances' in ds.pipeline[-1]['meta_keys']
+
+
+def test_a_model_that_detects_nothing_scores_0_not_missing(tmp_path):
+    """MMDet's CocoMetric reports no metric when nothing is detected on
+    any image; the AP of no detection is 0, and the table says so."""
+    root = str(tmp_path / 'cars')
+    write_voc_folder(root, {f'c{k}': [('car', (10, 10, 50, 40))]
+                            for k in range(4)})
+    car = CITYSCAPES_CLASSES.index('car')
+    cfg, ckpt = oracle_cfg(Config.fromfile(osp.join(
+        REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py')),
+        root, tmp_path, drop_class=car)
+    table = ap_drop(cfg, ckpt, str(tmp_path / 'none'), [])
+    assert table['metrics']['real fog'] == {
+        'coco/bbox_mAP': 0.0, 'coco/bbox_mAP_50': 0.0,
+        'coco/bbox_mAP_75': 0.0}
+    assert table['rows'][0]['box AP'] == 0.0
+    # only the evaluator's missing kinds; present metrics are kept
+    cfg = Config(dict(test_evaluator=[
+        dict(type='CocoMetric', metric=['bbox', 'segm', 'proposal'],
+             prefix='x'),
+        dict(type='CBNetInstanceMIoUMetric')]))
+    filled = with_empty_coco_results(cfg, {'x/bbox_mAP': 0.5})
+    assert filled == {'x/bbox_mAP': 0.5, 'x/segm_mAP': 0.0,
+                      'x/segm_mAP_50': 0.0, 'x/segm_mAP_75': 0.0}
 
 
 def fake_run(recipe, seed, ap):
