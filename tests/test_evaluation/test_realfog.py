@@ -194,7 +194,8 @@ def save_untrained_dehazer(path):
 
 
 @pytest.mark.slow
-def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys):
+def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys,
+                                restore_environ):
     """compare_recipes.py --set realfog on the tiny VOC folder, 2
     iterations, one seed: every recipe trains, is tested on the val split
     under 'real fog' (box AP only, no foggy betas), the table, record and
