@@ -4,9 +4,18 @@ One checkpoint is tested on the clear val images and on the foggy ones
 (per beta) with the same annotations, through MMEngine's ``Runner.test``;
 only ``test_dataloader.dataset`` changes between runs. Used by
 ``tools/analysis_tools/ap_drop.py`` and importable by demos.
+
+Real data. A config that sets ``test_condition = NAME`` (the real-fog
+configs under ``configs/realfog/``: ``'real fog'``) tests real foggy
+photographs, which have no clear twin and no fog density: its test set is
+evaluated as it is, under that name, and foggy betas are an error.
+:func:`real_fog_cfg` turns any detector config of the project into one:
+its model and test pipeline on the val split of a VOC real-fog folder,
+boxes only.
 """
 import copy
 import os.path as osp
+import re
 from typing import Dict, List, Optional, Sequence
 
 from mmengine.config import Config
@@ -89,7 +98,8 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
         prefix (str): Experiment name prefix.
 
     Returns:
-        dict[str, float]: The evaluators' metrics.
+        dict[str, float]: The evaluators' metrics; see
+        :func:`with_empty_coco_results`.
     """
     cfg = copy.deepcopy(cfg)
     cfg.load_from = checkpoint
@@ -104,7 +114,48 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
                 'param_scheduler', 'val_dataloader', 'val_cfg',
                 'val_evaluator'):
         cfg.pop(key, None)
-    return Runner.from_cfg(cfg).test()
+    return with_empty_coco_results(cfg, Runner.from_cfg(cfg).test())
+
+
+#: COCO AP keys set to 0 when a model detects nothing.
+EMPTY_AP_KEYS = ('mAP', 'mAP_50', 'mAP_75')
+
+
+def with_empty_coco_results(cfg: Config,
+                            metrics: Dict[str, float]) -> Dict[str, float]:
+    """Add AP 0 where ``CocoMetric`` reported nothing for a detection set.
+
+    MMDet's ``CocoMetric`` returns no metric at all (and logs "The testing
+    results of the whole dataset is empty") when the model kept no
+    detection on any test image, as a detector trained briefly from
+    scratch may. The average precision of no detection is 0: this sets
+    ``{prefix}/{bbox|segm}_{mAP, mAP_50, mAP_75}`` to 0.0 for each
+    ``CocoMetric`` of ``cfg.test_evaluator`` whose keys are all missing
+    (proposal metrics untouched).
+
+    Args:
+        cfg (Config): The test config.
+        metrics (dict[str, float]): ``Runner.test()``'s metrics.
+
+    Returns:
+        dict[str, float]: ``metrics`` with the zeros added.
+    """
+    metrics = dict(metrics)
+    evaluators = cfg.get('test_evaluator') or []
+    if isinstance(evaluators, dict):
+        evaluators = [evaluators]
+    for evaluator in evaluators:
+        if evaluator.get('type') != 'CocoMetric':
+            continue
+        prefix = evaluator.get('prefix') or 'coco'
+        kinds = evaluator.get('metric', 'bbox')
+        kinds = [kinds] if isinstance(kinds, str) else list(kinds)
+        for kind in kinds:
+            keys = [f'{prefix}/{kind}_{k}' for k in EMPTY_AP_KEYS]
+            if kind in ('bbox', 'segm') and \
+                    not any(k in metrics for k in keys):
+                metrics.update(dict.fromkeys(keys, 0.0))
+    return metrics
 
 
 def drop_table(metrics: Dict[str, Dict[str, float]]) -> dict:
@@ -151,20 +202,106 @@ def to_markdown(table: dict) -> str:
     return '\n'.join(lines)
 
 
+#: ``PackDetInputs``' default ``meta_keys`` (MMDet 3.x).
+PACK_META_KEYS = ('img_id', 'img_path', 'ori_shape', 'img_shape',
+                  'scale_factor', 'flip', 'flip_direction')
+
+
+def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
+                 **dataset_kwargs) -> Config:
+    """Copy of ``cfg`` that tests its model on a VOC real-fog folder.
+
+    The test set becomes a :class:`CBNetVOCFogDataset` (``split`` of its
+    seeded split, or ``ann_file`` in ``dataset_kwargs``) read with the
+    config's own test pipeline, with masks no longer loaded and the ground
+    truth passed on for ``CocoMetric`` (``'instances'`` in
+    ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
+    (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
+    ``test_condition`` is ``'real fog'``.
+
+    Args:
+        cfg (Config): A detector config of the project (CBNet, CBNet-DD,
+            the baselines, the dehaze pipelines...).
+        data_root (str): The VOC folder (``Annotations/``,
+            ``JPEGImages/``).
+        split (str, optional): ``'train'`` or ``'val'`` of the seeded
+            split; None with an ``ann_file`` image-set file.
+        **dataset_kwargs: More :class:`CBNetVOCFogDataset` arguments
+            (``img_suffix='.png'`` for RTTS, ``ann_file``, ``val_fraction``,
+            ``split_seed``, ``name_map``, ``ignore_names``...).
+
+    Returns:
+        Config: The modified copy.
+    """
+    cfg = copy.deepcopy(cfg)
+    pipeline = []
+    for transform in cfg.test_dataloader.dataset.pipeline:
+        transform = copy.deepcopy(transform)
+        if transform['type'] == 'LoadAnnotations':
+            transform.update(with_bbox=True, with_mask=False, with_seg=False)
+        elif transform['type'] == 'PackDetInputs':
+            keys = tuple(transform.get('meta_keys', PACK_META_KEYS))
+            transform['meta_keys'] = keys + ('instances', ) * (
+                'instances' not in keys)
+        pipeline.append(transform)
+    dataset = dict(type='CBNetVOCFogDataset', data_root=data_root,
+                   ann_file='', test_mode=True, pipeline=pipeline)
+    if split is not None:
+        dataset['split'] = split
+    dataset.update(dataset_kwargs)
+    cfg.test_dataloader.dataset = dataset
+    cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
+    cfg.test_condition = 'real fog'
+    return cfg
+
+
+def test_condition(cfg: Config) -> Optional[str]:
+    """The ``test_condition`` of a real-data config (None: Cityscapes
+    clear / foggy val)."""
+    name = cfg.get('test_condition')
+    if name is not None and (not isinstance(name, str) or not name.strip()):
+        raise ValueError(f'{cfg.filename}: test_condition must be a '
+                         f'non-empty name, got {name!r}')
+    return name
+
+
+def default_betas(cfg: Config,
+                  betas: Sequence[float] = (0.02, )) -> List[float]:
+    """``betas`` for a Cityscapes config, none for a real-data one."""
+    return [] if test_condition(cfg) else list(betas)
+
+
 def ap_drop(cfg: Config, checkpoint: str, work_dir: str,
             betas: Sequence[float] = (0.02, )) -> dict:
     """Evaluate on clear val and on foggy val for each beta.
+
+    A config with ``test_condition = NAME`` (real data) is tested on its
+    own test set only, as condition ``NAME``.
 
     Args:
         cfg (Config): Test config.
         checkpoint (str): Checkpoint file.
         work_dir (str): Output folder of the runs.
-        betas (Sequence[float]): Fog densities, 1/m.
+        betas (Sequence[float]): Fog densities, 1/m (none for a config with
+            ``test_condition``).
 
     Returns:
         dict: :func:`drop_table` output plus the raw ``metrics``.
     """
-    metrics = {'clear': evaluate_condition(cfg, checkpoint, work_dir)}
+    real = test_condition(cfg)
+    if real and betas:
+        raise ValueError(
+            f'{cfg.filename}: test_condition={real!r} tests real data, '
+            'which has no synthetic-fog twin; give no foggy betas '
+            f'(got {list(betas)})')
+    if real:
+        metrics = {
+            real: evaluate_checkpoint(cfg, checkpoint, work_dir,
+                                      re.sub(r'\W+', '_', real),
+                                      prefix='ap_drop')
+        }
+    else:
+        metrics = {'clear': evaluate_condition(cfg, checkpoint, work_dir)}
     for beta in betas:
         metrics[f'foggy beta={beta}'] = evaluate_condition(
             cfg, checkpoint, work_dir, beta)

@@ -16,6 +16,13 @@ trained: each seed tests the weights that the recipe with config ``PATH``
 trained for that seed, in the same comparison (listed before it), under
 the variant's own test settings (``model.test_cfg``, test pipeline). That
 compares, say, test-time proposal counts on the very same weights.
+
+Real data. When the recipes' configs set ``test_condition = NAME`` (the
+real-fog configs of ``configs/realfog/``, set ``realfog``), ``data_root``
+is that dataset (a VOC folder) and each run is tested on the config's own
+test set under condition ``NAME``, with no foggy betas
+(:func:`cbnet_mmdet.evaluation.ap_drop.ap_drop`); every recipe of a
+comparison must then name the same condition.
 """
 import copy
 import json
@@ -31,7 +38,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from mmengine.config import Config
 
-from .ap_drop import ap_drop
+from .ap_drop import ap_drop, test_condition
 
 #: Built-in sets: (recipe name, config path relative to the configs root).
 RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
@@ -122,6 +129,24 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          '1xb4-demo_cityscapes-like.py'),
         ('CBNet -sigmoid cls', 'demo/parts/cbnet_mit-b0_nasfpn-softmax-'
          'cls_1xb4-demo_cityscapes-like.py'),
+    ],
+    # issue 24, real fog (DAWN, RTTS or any VOC folder as --data-root):
+    # box-only recipes trained on its train split, tested on its val split;
+    # learning on fog against dehazing in front (dark channel prior, and
+    # the demo dehazer trained on the generated pairs)
+    'realfog': [
+        ('CBNet box path',
+         'realfog/cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py'),
+        ('Cascade R-CNN',
+         'realfog/cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py'),
+        ('DCP + Cascade R-CNN',
+         'realfog/cascade-rcnn_mit-b0_fpn_dcp_1xb4-demo_voc-fog.py'),
+        ('dehazer + Cascade R-CNN',
+         'realfog/cascade-rcnn_mit-b0_fpn_dehazer_1xb4-demo_voc-fog.py'),
+        ('YOLOX-Tiny', 'realfog/yolox_tiny_1xb4-demo_voc-fog.py'),
+        ('DCP + YOLOX-Tiny', 'realfog/yolox_tiny_dcp_1xb4-demo_voc-fog.py'),
+        ('dehazer + YOLOX-Tiny',
+         'realfog/yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
     ],
     # proposal recall of the three RPN heads
     'rpn': [
@@ -680,9 +705,27 @@ class RunLock:
         self.held = False
 
 
-def condition_names(betas: Sequence[float]) -> List[str]:
-    """Condition keys of :func:`ap_drop`: clear, then each beta."""
-    return ['clear'] + [f'foggy beta={b}' for b in betas]
+def condition_names(betas: Sequence[float],
+                    reference: str = 'clear') -> List[str]:
+    """Condition keys of :func:`ap_drop`: the reference (clear, or a
+    real-data config's ``test_condition``), then each beta."""
+    return [reference] + [f'foggy beta={b}' for b in betas]
+
+
+def reference_condition(recipes: Sequence[Tuple[str, str]]) -> str:
+    """The condition every recipe is tested on first: ``'clear'``, or the
+    ``test_condition`` all the recipes' configs name (real data).
+
+    Raises:
+        ValueError: The recipes name different conditions.
+    """
+    names = {name: test_condition(Config.fromfile(config)) or 'clear'
+             for name, config in recipes}
+    if len(set(names.values())) > 1:
+        raise ValueError(
+            'the recipes are tested on different data (test_condition of '
+            f'each: {names}); compare recipes of one kind at a time')
+    return next(iter(names.values()))
 
 
 def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
@@ -697,7 +740,9 @@ def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
     Returns:
         tuple: ``(name, key, scale)`` triples.
     """
-    keys = set.union(*(set(r['metrics']['clear']) for r in results))
+    # the reference condition is the first of each run
+    keys = set.union(*(set(next(iter(r['metrics'].values())))
+                       for r in results))
     for columns in (DETECTION_COLUMNS, PROPOSAL_COLUMNS):
         chosen = tuple(c for c in columns if c[1] in keys)
         if chosen:
@@ -712,7 +757,8 @@ def mean_std(values: Sequence[float]) -> Dict[str, float]:
     return dict(mean=float(arr.mean()), std=std, n=int(arr.size))
 
 
-def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
+def summarize(results: Sequence[dict], betas: Sequence[float],
+              reference: str = 'clear') -> dict:
     """Mean +- std over seeds per recipe, condition and column.
 
     A metric below 0 (MMDet's -1: nothing to evaluate) counts as missing.
@@ -721,6 +767,8 @@ def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
     Args:
         results (Sequence[dict]): Outputs of :func:`run_recipe`.
         betas (Sequence[float]): The tested fog densities.
+        reference (str): The first condition (clear, or real data's
+            ``test_condition``), which the drops are taken from.
 
     Returns:
         dict: ``columns`` (names), ``recipes`` (in order of first
@@ -729,7 +777,7 @@ def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
         ``train time (s)``.
     """
     columns = pick_columns(results)
-    conditions = condition_names(betas)
+    conditions = condition_names(betas, reference)
     recipes: Dict[str, List[dict]] = {}
     for r in results:
         recipes.setdefault(r['recipe'], []).append(r)
@@ -747,11 +795,11 @@ def summarize(results: Sequence[dict], betas: Sequence[float]) -> dict:
         for condition in conditions:
             row = {}
             for col, key, scale in columns:
-                pairs = [(value(r, 'clear', key, scale),
+                pairs = [(value(r, reference, key, scale),
                           value(r, condition, key, scale)) for r in runs]
                 vals = [v for _, v in pairs if v is not None]
                 row[col] = mean_std(vals) if vals else None
-                if condition == 'clear':
+                if condition == reference:
                     continue
                 drops = [c - v for c, v in pairs
                          if c is not None and v is not None]
@@ -780,7 +828,7 @@ def to_markdown(summary: dict) -> str:
     cols = summary['columns']
     out = []
     for condition in summary['conditions']:
-        foggy = condition != 'clear'
+        foggy = condition != summary['conditions'][0]
         heads = cols + ([f'{c} drop' for c in cols] if foggy
                         else ['train time (s)'])
         out.append(f'**{condition}**\n')
@@ -801,6 +849,8 @@ def plot(summary: dict, betas: Sequence[float], path: str,
          column: Optional[str] = None) -> str:
     """AP (or AR) vs fog density per recipe, mean +- std over seeds.
 
+    With no fog density (real data: one condition), a bar per recipe.
+
     Args:
         summary (dict): :func:`summarize` output.
         betas (Sequence[float]): Fog densities; clear is drawn at 0.
@@ -817,12 +867,20 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     import matplotlib.pyplot as plt
 
     cols = summary['columns']
+    reference = summary['conditions'][0]
     if column is None:
-        clear = [summary['summary'][r]['clear'] for r in summary['recipes']]
+        clear = [summary['summary'][r][reference]
+                 for r in summary['recipes']]
         column = next((c for c in ('mask AP', 'box AP') if c in cols and
                        all(e.get(c) is not None for e in clear)), cols[-1])
     xs = [0.0] + list(betas)
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    if not betas:
+        _bars(ax, summary, reference, column)
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        return path
     for recipe in summary['recipes']:
         entry = summary['summary'][recipe]
         stats = [entry[c].get(column) for c in summary['conditions']]
@@ -840,6 +898,19 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _bars(ax, summary: dict, condition: str, column: str) -> None:
+    """Bars of ``column`` (mean +- std) per recipe on ``condition``."""
+    recipes = summary['recipes']
+    stats = [summary['summary'][r][condition].get(column) for r in recipes]
+    ax.bar(range(len(recipes)), [s['mean'] if s else 0.0 for s in stats],
+           yerr=[s['std'] if s else 0.0 for s in stats], capsize=3,
+           color=[f'C{i}' for i in range(len(recipes))])
+    ax.set_xticks(range(len(recipes)))
+    ax.set_xticklabels(recipes, rotation=30, ha='right', fontsize=8)
+    ax.set_ylabel(f'{column} (%) on {condition}')
+    ax.grid(alpha=0.3, axis='y')
 
 
 def machine() -> str:
@@ -867,8 +938,10 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         seeds (Sequence[int]): Seeds; every recipe runs with each.
         budget (Budget): Training budget of every run.
         data_root (str): Dataset root (Cityscapes layout, with
-            ``leftImg8bit_foggy`` for the betas).
-        betas (Sequence[float]): Fog densities to test on.
+            ``leftImg8bit_foggy`` for the betas; or the real data of
+            recipes with a ``test_condition``).
+        betas (Sequence[float]): Fog densities to test on (none for real
+            data).
         out_dir (str): Output folder.
         cfg_options (dict, optional): Overrides for every config.
         log (callable): Progress printer.
@@ -884,9 +957,19 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     Returns:
         dict: What ``compare.json`` holds.
     """
+    reference = reference_condition(recipes)
     ann = osp.join(data_root, 'annotations',
                    'instancesonly_filtered_gtFine_val.json')
-    if not osp.isfile(ann):
+    if reference != 'clear':
+        if not osp.isdir(data_root):
+            raise FileNotFoundError(
+                f'--data-root {data_root} not found: the recipes test real '
+                f'data ({reference!r}); give its folder')
+        if betas:
+            raise ValueError(
+                f'the recipes test real data ({reference!r}): no foggy '
+                f'betas apply, got {list(betas)}')
+    elif not osp.isfile(ann):
         raise FileNotFoundError(
             f'{ann} not found: --data-root must be a dataset in the '
             'Cityscapes layout with converted annotations (generate one '
@@ -943,7 +1026,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             time.sleep(wait_s)
         pending = waiting
     results = [results[k] for k in sorted(results)]
-    summary = summarize(results, betas)
+    summary = summarize(results, betas, reference)
     record = dict(
         set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],
         seeds=list(seeds), budget=asdict(budget), data_root=data_root,

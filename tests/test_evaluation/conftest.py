@@ -23,13 +23,17 @@ class _Oracle(BaseDetector):
 
     ``drop_on_foggy`` ({beta as str: n}): on the foggy images of that beta
     the first ``n`` instances (annotation order) are left out, so the AP
-    drop is a known non-zero number.
+    drop is a known non-zero number. ``drop_class``: the instances of this
+    label are left out on every image. Boxes only where the ground truth
+    has no masks (VOC real-fog sets).
     """
 
-    def __init__(self, data_preprocessor=None, drop_on_foggy=None):
+    def __init__(self, data_preprocessor=None, drop_on_foggy=None,
+                 drop_class=None):
         super().__init__(data_preprocessor=data_preprocessor)
         self.dummy = nn.Parameter(torch.zeros(1))
         self.drop_on_foggy = dict(drop_on_foggy or {})
+        self.drop_class = drop_class
 
     def predict(self, batch_inputs, batch_data_samples, rescale=True):
         for img, sample in zip(batch_inputs, batch_data_samples):
@@ -38,11 +42,15 @@ class _Oracle(BaseDetector):
             for beta, num in self.drop_on_foggy.items():
                 if sample.img_path.endswith(f'_foggy_beta_{beta}.png'):
                     gt = gt[num:]
-            sample.pred_instances = InstanceData(
+            if self.drop_class is not None:
+                gt = gt[gt.labels != self.drop_class]
+            pred = InstanceData(
                 bboxes=getattr(gt.bboxes, 'tensor', gt.bboxes),
                 labels=gt.labels,
-                scores=torch.ones(len(gt)),
-                masks=gt.masks.to_tensor(torch.bool, 'cpu'))
+                scores=torch.ones(len(gt)))
+            if 'masks' in gt:
+                pred.masks = gt.masks.to_tensor(torch.bool, 'cpu')
+            sample.pred_instances = pred
         return batch_data_samples
 
     def loss(self, *args, **kwargs):

@@ -364,6 +364,7 @@ def test_compare_waits_for_runs_held_by_another_process(tmp_path,
     monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
     monkeypatch.setattr(rc, 'weights_sources',
                         lambda recipes: {n: None for n, _ in recipes})
+    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
     ann = tmp_path / 'data' / 'annotations'
     ann.mkdir(parents=True)
@@ -407,12 +408,20 @@ def test_cli_preset_fills_what_is_not_given():
     spec.loader.exec_module(tool)
     bench = rc.PRESETS['bench']
     args = tool.parse_args(['--set', 'parts', '--preset', 'bench'])
-    assert (args.data_root, args.iters, args.batch_size,
-            tuple(args.img_scale)) == (bench.data_root, bench.iters,
-                                       bench.batch_size, bench.img_scale)
+    assert (args.iters, args.batch_size, tuple(args.img_scale)) == (
+        bench.iters, bench.batch_size, bench.img_scale)
+    parts = rc.resolve_recipes('parts')
+    assert tool.data_and_betas(args, parts) == (bench.data_root,
+                                                [0.005, 0.01, 0.02])
     args = tool.parse_args(['--set', 'arch', '--preset', 'bench',
-                            '--iters', '7', '--img-scale', '64', '32'])
+                            '--iters', '7', '--img-scale', '64', '32',
+                            '--data-root', 'elsewhere'])
     assert args.iters == 7 and tuple(args.img_scale) == (64, 32)
+    assert tool.data_and_betas(args, parts)[0] == 'elsewhere'
     args = tool.parse_args(['--set', 'arch'])
     assert args.iters == 120 and args.img_scale is None
-    assert args.data_root == 'data/cityscapes_like'
+    assert tool.data_and_betas(args, parts)[0] == 'data/cityscapes_like'
+    # real-data recipes: their config's data, no betas
+    realfog = rc.resolve_recipes('realfog')
+    data_root, betas = tool.data_and_betas(args, realfog)
+    assert betas == [] and data_root != 'data/cityscapes_like'

@@ -10,6 +10,19 @@ Tests the checkpoint on clear val, then on foggy val for each beta (same
 annotations), prints the paper's Table 2 as markdown (box AP, mask AP, mask
 AP50, mIoU and their drops, in percent) and writes ``ap_drop.json`` and
 ``ap_drop.md`` to ``--out-dir``.
+
+Real fog. ``--real-fog DIR`` tests the checkpoint of any detector config
+on the val split of a VOC real-fog folder instead (box AP; masks are
+ignored; no betas), e.g. DAWN's fog photos or RTTS (PNG images)::
+
+    python tools/analysis_tools/ap_drop.py CONFIG CHECKPOINT \
+        --real-fog data/dawn_fog
+    python tools/analysis_tools/ap_drop.py CONFIG CHECKPOINT \
+        --real-fog data/rtts --cfg-options \
+        test_dataloader.dataset.img_suffix=.png
+
+A real-data config (``test_condition = NAME``, the box-only recipes of
+``configs/realfog/``) is tested on its own test set only (no betas).
 """
 import argparse
 import json
@@ -19,7 +32,8 @@ import os.path as osp
 from mmengine.config import Config, DictAction
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_mmdet.evaluation.ap_drop import ap_drop, to_markdown
+from cbnet_mmdet.evaluation.ap_drop import (ap_drop, default_betas,
+                                            real_fog_cfg, to_markdown)
 
 
 def parse_args(argv=None):
@@ -27,9 +41,13 @@ def parse_args(argv=None):
         description='Clear vs foggy evaluation of one checkpoint')
     parser.add_argument('config')
     parser.add_argument('checkpoint')
-    parser.add_argument('--betas', type=float, nargs='+', default=[0.02],
-                        help='fog attenuation coefficients, 1/m')
+    parser.add_argument('--betas', type=float, nargs='*', default=None,
+                        help='fog attenuation coefficients, 1/m (default '
+                        '0.02; none for a real-data config)')
     parser.add_argument('--out-dir', default='work_dirs/ap_drop')
+    parser.add_argument('--real-fog', metavar='DIR',
+                        help='test on the val split of this VOC real-fog '
+                        'folder (boxes only) instead')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='override config keys')
     return parser.parse_args(argv)
@@ -38,10 +56,13 @@ def parse_args(argv=None):
 def main(argv=None):
     args = parse_args(argv)
     cfg = Config.fromfile(args.config)
+    if args.real_fog:
+        cfg = real_fog_cfg(cfg, args.real_fog)
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
     os.makedirs(args.out_dir, exist_ok=True)
-    table = ap_drop(cfg, args.checkpoint, args.out_dir, args.betas)
+    betas = default_betas(cfg) if args.betas is None else args.betas
+    table = ap_drop(cfg, args.checkpoint, args.out_dir, betas)
     md = to_markdown(table)
     print(md)
     with open(osp.join(args.out_dir, 'ap_drop.md'), 'w') as f:

@@ -24,6 +24,10 @@ Built-in sets (configs under configs/, demo-size, one MiT-B0 trunk):
   parts     what each part of CBNet is worth: MMDet's stock Cascade Mask
             R-CNN with ONE CBNet part swapped in, and CBNet with ONE part
             taken back (configs/demo/parts/); --only picks rows
+  realfog   box-only recipes on real fog (a VOC folder: DAWN, RTTS):
+            CBNet's box path, Cascade R-CNN and YOLOX-Tiny learning on
+            fog vs the last two behind the dark channel prior or the
+            learned dehazer; tested on the folder's val split, no betas
 
 Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512
@@ -31,6 +35,10 @@ data from `generate_cityscapes_like.py --preset bench`, a budget where
 recipes can be told apart; docs/accuracy.md). Two processes may run the
 same comparison at once (one per core, --threads 1): each run is locked
 by the process that trains it.
+
+Recipes whose configs set ``test_condition`` (real data, like the realfog
+set) take ``--data-root`` as their data (default: the config's) and are
+tested on their own test set only: no ``--betas``.
 
 Examples::
 
@@ -48,11 +56,14 @@ Examples::
     python tools/analysis_tools/compare_recipes.py \
         --configs mine=configs/my.py baseline=configs/base.py \
         --data-root data/cityscapes --iters 2000 --batch-size 8
+    # real fog: DAWN's fog/haze photos (docs/robustness.md, "Real fog")
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set realfog --data-root data/dawn_fog --threads 1
 """
 import argparse
 import sys
 
-from mmengine.config import DictAction
+from mmengine.config import Config, DictAction
 
 
 def parse_args(argv=None):
@@ -78,7 +89,8 @@ def parse_args(argv=None):
     parser.add_argument('--data-root',
                         help='dataset in the Cityscapes layout with '
                         'converted annotations and leftImg8bit_foggy '
-                        "(default: the preset's)")
+                        "(default: the preset's); for real-data recipes "
+                        "their data (default: the config's)")
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--iters', type=int,
                         help='training iterations per run (0: untrained)')
@@ -92,9 +104,9 @@ def parse_args(argv=None):
                         "(default: the preset's; the demo preset keeps "
                         "each config's)")
     parser.add_argument('--num-workers', type=int, default=1)
-    parser.add_argument('--betas', type=float, nargs='*',
-                        default=[0.005, 0.01, 0.02],
-                        help='fog densities (1/m) to test on')
+    parser.add_argument('--betas', type=float, nargs='*', default=None,
+                        help='fog densities (1/m) to test on (default '
+                        '0.005 0.01 0.02; none for real-data recipes)')
     parser.add_argument('--work-dir', default=None,
                         help='default: work_dirs/compare/<set or custom>, '
                         'with _<preset> unless the preset is demo')
@@ -110,13 +122,28 @@ def parse_args(argv=None):
     if args.set is None and not args.configs:
         parser.error('give --set or --configs')
     preset = PRESETS[args.preset]
-    for key in ('data_root', 'iters', 'batch_size', 'warmup_iters',
-                'img_scale'):
+    # data_root is filled in main(): real-data recipes take their config's
+    for key in ('iters', 'batch_size', 'warmup_iters', 'img_scale'):
         if getattr(args, key) is None:
             setattr(args, key, getattr(preset, key))
     if args.iters < 0 or args.batch_size < 1 or not args.seeds:
         parser.error('--iters >= 0, --batch-size >= 1 and one seed or more')
     return args
+
+
+def data_and_betas(args, recipes) -> tuple:
+    """``--data-root`` and ``--betas``, or their defaults: real-data
+    recipes (configs with ``test_condition``) test their config's data and
+    no betas; the others the preset's data root and three betas."""
+    from cbnet_mmdet.evaluation import recipe_comparison as rc
+    real = rc.reference_condition(recipes) != 'clear'
+    betas, data_root = args.betas, args.data_root
+    if betas is None:
+        betas = [] if real else [0.005, 0.01, 0.02]
+    if data_root is None:
+        data_root = Config.fromfile(recipes[0][1]).data_root if real \
+            else rc.PRESETS[args.preset].data_root
+    return data_root, betas
 
 
 def main(argv=None) -> dict:
@@ -129,6 +156,7 @@ def main(argv=None) -> dict:
     if args.threads:
         torch.set_num_threads(args.threads)
     recipes = rc.resolve_recipes(args.set, args.configs, args.only)
+    data_root, betas = data_and_betas(args, recipes)
     name = args.set or 'custom'
     if args.preset != 'demo':
         name += f'_{args.preset}'
@@ -140,8 +168,8 @@ def main(argv=None) -> dict:
     if args.restore:
         n = rc.restore_runs(args.restore, work_dir, budget)
         print(f'restored {n} finished run(s) from {args.restore}')
-    record = rc.compare(recipes, args.seeds, budget, args.data_root,
-                        args.betas, work_dir, args.cfg_options,
+    record = rc.compare(recipes, args.seeds, budget, data_root,
+                        betas, work_dir, args.cfg_options,
                         set_name=args.set)
     print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
           'compare.png')
