@@ -230,8 +230,9 @@ class Preset:
 #: of 4 images: every recipe at 1-5 AP). ``bench``: the candidate benchmark
 #: of issue 23 (docs/accuracy.md "The benchmark"): 600 iterations of 4
 #: 256x512 images (15 epochs of the 160 training images with instances),
-#: the schedule under which the demo-size stock Mask R-CNN's AP was
-#: measured there (17 mask AP at iteration 300 of 600, one seed).
+#: the schedule under which the demo-size stock Mask R-CNN was measured
+#: there (29.6 mask AP at the end, one seed; the seed spread is still to
+#: be measured).
 PRESETS: Dict[str, Preset] = {
     'demo': Preset('data/cityscapes_like', iters=120, batch_size=4,
                    warmup_iters=30),
