@@ -121,11 +121,6 @@ pipq --no-deps openmim==0.3.9
 pipq -r "$ROOT/requirements/tests.txt"
 say "serving extra: Ray Serve (requirements/serve.txt; the serving tests need it)"
 pipq -r "$ROOT/requirements/serve.txt"
-# cityscapesScripts pulls the `typing` 3.7 backport (a typing.py in
-# site-packages). Ray starts its workers with site-packages ahead of the
-# standard library, where that file breaks `import ray`; Python 3.11 has
-# typing built in, so the backport goes.
-python -m pip uninstall -y -q typing 2>/dev/null || true
 install_project
 
 python - <<'PY'

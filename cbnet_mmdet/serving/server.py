@@ -16,6 +16,7 @@ images waiting at most ``batch_wait_timeout_s``) and run through
 """
 import os
 import signal
+import site
 import time
 from typing import Dict, List, Optional
 
@@ -105,6 +106,24 @@ def build_app(config: str,
             max_batch_size, batch_wait_timeout_s, max_pixels, max_bytes)
 
 
+def worker_pythonpath() -> str:
+    """PYTHONPATH for Ray's workers: the caller's, plus the folder this
+    package was imported from when it is a source tree (so that workers
+    import the same code). An installed package's folder is site-packages,
+    which is never put there: on PYTHONPATH it would come ahead of the
+    standard library, and the `typing` 3.7 backport that cityscapesScripts
+    installs into site-packages would then shadow Python's own `typing`
+    and break `import ray` in every worker."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(
+        os.path.abspath(__file__))))
+    site_dirs = {os.path.realpath(d) for d in
+                 site.getsitepackages() + [site.getusersitepackages()]}
+    if os.path.realpath(root) in site_dirs:
+        root = None
+    return os.pathsep.join(
+        p for p in (root, os.environ.get('PYTHONPATH')) if p)
+
+
 def run_local(config: str,
               checkpoint: Optional[str] = None,
               host: str = '127.0.0.1',
@@ -113,11 +132,8 @@ def run_local(config: str,
               **kwargs) -> None:
     """Start a one-machine Ray, serve the detector, block until SIGINT or
     SIGTERM, then shut Ray down."""
-    root = os.path.dirname(os.path.dirname(os.path.dirname(
-        os.path.abspath(__file__))))
     env = {'OMP_NUM_THREADS': os.environ.get('OMP_NUM_THREADS', '1'),
-           'PYTHONPATH': os.pathsep.join(
-               p for p in (root, os.environ.get('PYTHONPATH')) if p)}
+           'PYTHONPATH': worker_pythonpath()}
     ray.init(num_cpus=num_cpus, include_dashboard=False,
              runtime_env=dict(env_vars=env), logging_level='WARNING')
     serve.start(http_options=dict(host=host, port=port))
