@@ -430,9 +430,11 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     ]
     if budget.lr is not None:
         cfg.optim_wrapper.optimizer.lr = budget.lr
+    # a checkpoint every sixth of the run (the last one kept), so that a
+    # run killed mid-way (a session's end) resumes from it, not from 0
     cfg.default_hooks.checkpoint = dict(
-        type='CheckpointHook', interval=iters, by_epoch=False,
-        max_keep_ckpts=1, save_best=None)
+        type='CheckpointHook', interval=checkpoint_interval(iters),
+        by_epoch=False, max_keep_ckpts=1, save_best=None)
     cfg.default_hooks.logger = dict(
         type='LoggerHook', interval=max(1, iters // 10))
     cfg.log_processor = dict(type='LogProcessor', window_size=10,
@@ -440,7 +442,7 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     cfg.randomness = dict(seed=seed)
     cfg.work_dir = work_dir
     cfg.load_from = None
-    cfg.resume = False
+    cfg.resume = resume_iter(work_dir) is not None
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
     if budget.img_scale is not None:
         set_img_scale(cfg, budget.img_scale)
@@ -463,6 +465,30 @@ def _save_untrained(runner, path: str) -> None:
 def result_file(out_dir: str, name: str, seed: int) -> str:
     """Where :func:`run_recipe` keeps the result of one recipe and seed."""
     return osp.join(out_dir, slug(name), f'seed{seed}', 'result.json')
+
+
+def checkpoint_interval(iters: int) -> int:
+    """Iterations between the checkpoints of a run: a sixth of it."""
+    return max(1, -(-iters // 6))
+
+
+def resume_iter(work_dir: str) -> Optional[int]:
+    """The iteration a killed run of ``work_dir`` resumes from.
+
+    MMEngine writes ``last_checkpoint`` (the path of the newest checkpoint)
+    in the work dir; a run whose file names an existing ``iter_N.pth``
+    resumes from N (MMEngine restores the weights, the optimizer, the lr
+    schedule and skips the data already seen). None: start from 0.
+    """
+    marker = osp.join(work_dir, 'last_checkpoint')
+    if not osp.isfile(marker):
+        return None
+    with open(marker) as f:
+        path = f.read().strip()
+    match = re.fullmatch(r'iter_(\d+)\.pth', osp.basename(path))
+    if match is None or not osp.isfile(path):
+        return None
+    return int(match.group(1))
 
 
 def checkpoint_file(out_dir: str, name: str, seed: int,
@@ -622,6 +648,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'{seed}, but {checkpoint} does not exist')
         train_time, extra = None, dict(weights_of=weights_of)
     else:
+        resumed = resume_iter(run_dir) if budget.iters > 0 else None
         runner = Runner.from_cfg(cfg)
         start = time.perf_counter()
         checkpoint = checkpoint_file(out_dir, name, seed, budget)
@@ -631,6 +658,13 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             _save_untrained(runner, checkpoint)
         train_time = time.perf_counter() - start
         del runner
+        if resumed is not None:
+            # this process trained iterations resumed..iters only: the
+            # whole run's time is extrapolated, and the record says so
+            done = budget.iters - resumed
+            train_time = train_time * budget.iters / done if done else None
+            extra = dict(resumed_at_iter=resumed,
+                         train_time_extrapolated=True)
     test_cfg = copy.deepcopy(cfg)
     table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas)
     result = dict(

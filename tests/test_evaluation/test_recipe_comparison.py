@@ -1,4 +1,5 @@
 """The comparison harness (cbnet_mmdet/evaluation/recipe_comparison.py)."""
+import glob
 import json
 import os.path as osp
 
@@ -425,3 +426,47 @@ def test_cli_preset_fills_what_is_not_given():
     realfog = rc.resolve_recipes('realfog')
     data_root, betas = tool.data_and_betas(args, realfog)
     assert betas == [] and data_root != 'data/cityscapes_like'
+
+
+def test_resume_iter_reads_mmengines_marker(tmp_path):
+    assert rc.resume_iter(str(tmp_path)) is None
+    marker = tmp_path / 'last_checkpoint'
+    marker.write_text(str(tmp_path / 'iter_200.pth'))
+    assert rc.resume_iter(str(tmp_path)) is None  # the file is gone
+    (tmp_path / 'iter_200.pth').write_bytes(b'')
+    assert rc.resume_iter(str(tmp_path)) == 200
+    marker.write_text(str(tmp_path / 'epoch_3.pth'))
+    (tmp_path / 'epoch_3.pth').write_bytes(b'')
+    assert rc.resume_iter(str(tmp_path)) is None
+    assert [rc.checkpoint_interval(n) for n in (1, 6, 120, 600, 601)] == \
+        [1, 1, 20, 100, 101]
+
+
+def test_a_killed_run_resumes_from_its_last_checkpoint(
+        cityscapes_like_root, tmp_path):
+    """A run stopped at iteration 3 of 6 (a session's end) goes on from
+    its checkpoint of iteration 3 when the comparison is run again, and
+    its record says so."""
+    crpn = osp.join(ROOT, 'configs', 'demo', 'rpn',
+                    'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+    budget = rc.Budget(iters=6, batch_size=2, warmup_iters=2, num_workers=0)
+    args = ('CRPN', crpn, 0, budget, cityscapes_like_root, [],
+            str(tmp_path))
+    run_dir = osp.dirname(rc.result_file(str(tmp_path), 'CRPN', 0))
+    cfg = rc.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
+    assert cfg.resume is False
+    assert cfg.default_hooks.checkpoint.interval == 1
+    # "killed" after 3 iterations: the test of iteration 6's weights fails
+    with pytest.raises(Exception):
+        rc.run_recipe(*args, cfg_options={'train_cfg.max_iters': 3})
+    assert rc.resume_iter(run_dir) == 3
+    assert rc.budget_cfg(crpn, budget, 0, cityscapes_like_root,
+                         run_dir).resume is True
+    result = rc.run_recipe(*args)
+    assert result['resumed_at_iter'] == 3
+    assert result['train_time_extrapolated'] is True
+    assert result['train_time_s'] > 0
+    assert osp.isfile(rc.checkpoint_file(str(tmp_path), 'CRPN', 0, budget))
+    logs = glob.glob(osp.join(run_dir, '*', '*.log'))
+    assert any('Resuming' in open(p).read() or 'resumed' in open(p).read()
+               for p in logs), logs

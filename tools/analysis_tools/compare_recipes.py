@@ -34,7 +34,9 @@ Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 data from `generate_cityscapes_like.py --preset bench`, a budget where
 recipes can be told apart; docs/accuracy.md). Two processes may run the
 same comparison at once (one per core, --threads 1): each run is locked
-by the process that trains it.
+by the process that trains it. A run saves a checkpoint every sixth of its
+iterations; a run killed mid-way resumes from it when the comparison is
+started again (its record says ``resumed_at_iter``).
 
 Recipes whose configs set ``test_condition`` (real data, like the realfog
 set) take ``--data-root`` as their data (default: the config's) and are
