@@ -212,7 +212,7 @@ def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys,
             # process: seconds per recipe
             '--cfg-options',
             'train_dataloader.dataset.pipeline.2.scale=(160,96)',
-            'test_dataloader.dataset.pipeline.1.scale=(160,96)',
+            'test_dataloader.dataset.pipeline.2.scale=(160,96)',
             'test_dataloader.num_workers=0',
             'test_dataloader.persistent_workers=False']
     record = tool.main(argv)

@@ -26,7 +26,11 @@ fog_train_pipeline = [
     dict(type='PackDetInputs')
 ]
 fog_test_pipeline = [
-    dict(type='LoadImageFromFile'),
+    # as every shipped test pipeline: the checking backend and
+    # CBNetCheckImage (an empty, missing or non-image file is an error
+    # naming it, also behind MMDet's inference API)
+    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
+    dict(type='CBNetCheckImage'),
     dict(type='Resize', scale=fog_img_scale, keep_ratio=True),
     dict(type='LoadAnnotations', with_bbox=True),
     dict(
