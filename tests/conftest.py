@@ -19,6 +19,7 @@ Every test module must leave ``os.environ`` as it found it
 import os
 import os.path as osp
 import socket
+import sys
 import tempfile
 
 import cv2  # noqa: F401  (see below)
@@ -27,6 +28,10 @@ import pytest
 # cv2's import exports LD_LIBRARY_PATH and QT_QPA_* once per process:
 # imported here, before any module's environment snapshot, so that the
 # first test to load an image is not reported as leaking them.
+
+# the one loader of tools/ scripts (tests/test_tools/tool_helpers.py:
+# load_tool, DEMO, demo_checkpoint), importable from every test folder
+sys.path.append(osp.join(osp.dirname(osp.abspath(__file__)), 'test_tools'))
 
 #: Parameters of the tiny dataset (tests may rely on them).
 TINY = dict(num_train=4, num_val=3, img_size=(128, 256), seed=0,

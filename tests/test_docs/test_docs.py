@@ -10,7 +10,6 @@
   stock Mask R-CNN through ``_base_`` inheritance, as a user would use it.
 """
 import glob
-import importlib.util
 import inspect
 import os.path as osp
 import re
@@ -21,6 +20,7 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
+from tool_helpers import load_tool
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DOCS = [osp.join(ROOT, 'README.md')] + sorted(
@@ -30,18 +30,6 @@ REPO_DIRS = ('cbnet_mmdet/', 'configs/', 'tools/', 'tests/', 'docs/',
              'requirements/', '.ci/')
 #: What the README snippet must be built on.
 STOCK_MASK_RCNN = 'mmdet::mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py'
-
-
-def _tool_helpers():
-    path = osp.join(ROOT, 'tests', 'test_tools', 'tool_helpers.py')
-    spec = importlib.util.spec_from_file_location('cbnet_doc_tool_helpers',
-                                                  path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-load_tool = _tool_helpers().load_tool
 
 
 def _read(path):

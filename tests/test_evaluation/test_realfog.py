@@ -2,7 +2,6 @@
 ``test_condition``), the harness's real-data conditions, and the
 ``realfog`` set end to end on a tiny generated VOC folder."""
 import glob
-import importlib.util
 import json
 import os.path as osp
 
@@ -11,6 +10,7 @@ import pytest
 import torch
 from mmdet.registry import MODELS
 from mmengine.config import Config
+from tool_helpers import load_tool
 
 from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
                                                        write_voc_folder)
@@ -26,16 +26,6 @@ RECIPES = dict(rc.RECIPE_SETS['realfog'])
 RECIPES = {n: osp.join(ROOT, 'configs', p) for n, p in RECIPES.items()}
 DATASET_CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
                        'cityscapes_instance.py')
-
-
-def load_tool(relpath):
-    """Import ``tools/{relpath}`` (the tools are not a package)."""
-    spec = importlib.util.spec_from_file_location(
-        'realfog_' + relpath.replace('/', '_')[:-3],
-        osp.join(ROOT, 'tools', relpath))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def oracle_cfg(cfg, root, tmp_path, drop_class=None):

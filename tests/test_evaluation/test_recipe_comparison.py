@@ -5,6 +5,7 @@ import os.path as osp
 
 import numpy as np
 import pytest
+from tool_helpers import load_tool
 
 from cbnet_mmdet.evaluation import recipe_comparison as rc
 
@@ -192,12 +193,7 @@ def test_compare_end_to_end_trained_beats_untrained(
     table has its structure; the trained proposals recall more. A
     test-time variant (100 proposals kept) tests the trained weights. A
     rerun reads the finished runs back (resumable)."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        'compare_recipes',
-        osp.join(ROOT, 'tools', 'analysis_tools', 'compare_recipes.py'))
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('analysis_tools/compare_recipes.py')
     crpn = osp.join(ROOT, 'configs', 'demo', 'rpn',
                     'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
     common = ['--configs', f'CRPN={crpn}', '--data-root',
@@ -401,12 +397,7 @@ def test_only_keeps_the_named_recipes_in_set_order():
 
 
 def test_cli_preset_fills_what_is_not_given():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        'compare_recipes_cli',
-        osp.join(ROOT, 'tools', 'analysis_tools', 'compare_recipes.py'))
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('analysis_tools/compare_recipes.py')
     bench = rc.PRESETS['bench']
     args = tool.parse_args(['--set', 'parts', '--preset', 'bench'])
     assert (args.iters, args.batch_size, tuple(args.img_scale)) == (

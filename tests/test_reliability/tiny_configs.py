@@ -15,7 +15,7 @@ from mmengine.config import Config
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 HERE = osp.dirname(osp.abspath(__file__))
 # one loader of the tools/ scripts for all tests: tests/test_tools' helper
-sys.path.append(osp.join(REPO, 'tests', 'test_tools'))
+# (tests/conftest.py puts its folder on sys.path)
 from tool_helpers import load_tool  # noqa: E402,F401  (re-exported)
 DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')

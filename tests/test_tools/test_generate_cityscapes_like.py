@@ -1,15 +1,10 @@
-import importlib.util
 import json
-import os.path as osp
 
-TOOL = osp.join(osp.dirname(__file__), '..', '..', 'tools', 'misc',
-                'generate_cityscapes_like.py')
+from tool_helpers import load_tool
 
 
 def test_generate_cli(tmp_path, capsys):
-    spec = importlib.util.spec_from_file_location('gen_tool', TOOL)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('misc/generate_cityscapes_like.py')
     root = tmp_path / 'cs'
     tool.main([str(root), '--num-train', '2', '--num-val', '1', '--size',
                '96', '192', '--seed', '1', '--betas', '0.01', '--convert',
@@ -34,9 +29,7 @@ def test_generate_cli(tmp_path, capsys):
 
 
 def test_preset_fills_what_is_not_given():
-    spec = importlib.util.spec_from_file_location('gen_tool_p', TOOL)
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool('misc/generate_cityscapes_like.py')
     from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
     bench = DATA_PRESETS['bench']
     args = tool.parse_args(['out', '--preset', 'bench'])

@@ -5,7 +5,6 @@ is the same config with MiT-B1 (the B0-in-B5 case of the issue, smaller);
 a CBNet-DD checkpoint is the demo model's weights under ``student.`` and
 ``teacher.``, as ``CBNetDistiller`` writes them.
 """
-import importlib.util
 import os.path as osp
 
 import pytest
@@ -14,6 +13,7 @@ from mmdet.apis import DetInferencer, init_detector
 from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
+from tool_helpers import load_tool
 
 import cbnet_mmdet  # noqa: F401
 from cbnet_mmdet.utils.checkpoint_fit import (CheckpointMismatchError,
@@ -115,10 +115,7 @@ def test_tools_test_refuses_a_partial_fit(ckpts, tmp_path, restore_environ):
     """tools/test.py: the report hook with require_fit refuses what
     MMEngine would load partly (here: one RoI-head tensor missing)."""
     from mmengine.runner import Runner
-    spec = importlib.util.spec_from_file_location(
-        'cbnet_fit_tools_test', osp.join(ROOT, 'tools', 'test.py'))
-    test_tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(test_tool)
+    test_tool = load_tool('test.py')
     state = torch.load(ckpts['b0'])['state_dict']
     state.pop('roi_head.mask_head.conv_logits.weight')
     path = str(tmp_path / 'partial.pth')
