@@ -17,6 +17,8 @@ Annotations::
 the released dataset); it is written as in the released file names.
 """
 import os.path as osp
+import re
+from typing import Tuple
 
 #: The attenuation coefficients released with Foggy Cityscapes.
 FOGGY_BETAS = (0.005, 0.01, 0.02)
@@ -24,6 +26,7 @@ FOGGY_BETAS = (0.005, 0.01, 0.02)
 CLEAR_DIR = 'leftImg8bit'
 FOGGY_DIR = 'leftImg8bit_foggy'
 CLEAR_SUFFIX = '_leftImg8bit.png'
+_FOGGY_NAME = re.compile(r'_leftImg8bit_foggy_beta_([0-9.]+)\.png$')
 
 
 def beta_str(beta: float) -> str:
@@ -53,3 +56,13 @@ def foggy_path(clear_path: str, beta: float) -> str:
     return osp.join(
         osp.sep.join(parts),
         f'{stem}_leftImg8bit_foggy_beta_{beta_str(beta)}.png')
+
+
+def split_beta(path: str) -> Tuple[str, str]:
+    """The clear twin's name of a foggy image name and its beta as written:
+    ``'a/x_leftImg8bit_foggy_beta_0.02.png' -> ('a/x_leftImg8bit.png',
+    '0.02')``; any other name is returned as it is, with ``'clear'``."""
+    match = _FOGGY_NAME.search(path or '')
+    if match is None:
+        return path, 'clear'
+    return path[:match.start()] + CLEAR_SUFFIX, match.group(1)

@@ -105,6 +105,17 @@ class EdgeRouter:
         pred.pop('width', None)
         return pred
 
+    def server_info(self) -> Optional[Dict]:
+        """The server's ``GET /info`` (its model and classes), or None
+        when it does not answer within ``timeout_s``."""
+        try:
+            resp = self.session.get(
+                self.cfg.server_url.rstrip('/') + '/info',
+                timeout=self.cfg.timeout_s)
+            return resp.json() if resp.status_code == 200 else None
+        except (requests.RequestException, ValueError):
+            return None
+
     def __call__(self, img: np.ndarray, frame: str = '') -> Dict:
         """Process one BGR frame: ``{'frame', 'where', 'reason',
         'transmission', 'local_top_score', 'seconds', 'prediction'}``."""

@@ -12,6 +12,8 @@ from mmengine.registry import init_default_scope
 from cbnet_mmdet.datasets import (CBNetCityscapesDataset,
                                   CBNetFoggyCityscapesDataset,
                                   CBNetPairedFoggyDataset)
+from cbnet_mmdet.datasets.cityscapes_paths import (FOGGY_BETAS, foggy_path,
+                                                   split_beta)
 
 ANN = 'annotations/instancesonly_filtered_gtFine_val.json'
 init_default_scope('mmdet')
@@ -65,6 +67,17 @@ def test_foggy_paths(cityscapes_like_root):
     with pytest.raises(ValueError, match='0.03'):
         _dataset(cityscapes_like_root, CBNetFoggyCityscapesDataset,
                  beta=0.03)
+
+
+def test_split_beta_inverts_foggy_path():
+    clear = 'leftImg8bit/val/lindau/lindau_000001_000019_leftImg8bit.png'
+    for beta in FOGGY_BETAS:
+        foggy = foggy_path(clear, beta)
+        twin, got = split_beta(osp.basename(foggy))
+        assert (twin, got) == (osp.basename(clear), str(beta))
+    assert split_beta(clear) == (clear, 'clear')
+    assert split_beta('x_foggy_beta_0.02.jpg') == ('x_foggy_beta_0.02.jpg',
+                                                   'clear')
 
 
 @pytest.fixture

@@ -76,7 +76,10 @@ def server(demo_ckpt, tmp_path_factory):
         except requests.RequestException:
             pass
         if proc.poll() is not None or time.monotonic() > deadline:
-            os.killpg(proc.pid, signal.SIGKILL)
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:  # it died: its log says why
+                pass
             log.seek(0)
             pytest.fail('server did not start:\n' + log.read()[-3000:])
         time.sleep(0.5)
@@ -181,6 +184,12 @@ def test_route_cli_over_a_folder(server, demo_ckpt, frames, tmp_path):
     assert [r['frame'] for r in recs] == sorted(n for n, _ in frames[:2])
     assert [r['where'] for r in recs] == ['server', 'server']
     assert all('bboxes' in r['prediction'] for r in recs)
+    # run.json names both models' classes (offload_eval.py maps labels
+    # through them) and the thresholds the run used
+    run = json.load(open(out / 'run.json'))
+    assert run['router']['mode'] == 'server'
+    assert run['local']['classes'] == run['server']['classes']
+    assert len(run['server']['classes']) == 8
 
 
 def test_load_test_cli(server, tmp_path):

@@ -9,8 +9,11 @@ Usage::
         [--timeout-s 5]
 
 Writes ``OUT/results.jsonl`` (one line per frame: frame, where, reason,
-transmission, local_top_score, seconds, prediction) and prints a summary
-of where frames were processed (local / server / local-fallback).
+transmission, local_top_score, seconds, prediction), ``OUT/run.json`` (the
+router's thresholds, the local model's and the server's ``/info``: their
+classes name the labels) and prints a summary of where frames were
+processed (local / server / local-fallback). ``offload_eval.py`` scores
+such runs against ground truth.
 """
 import argparse
 import glob
@@ -69,9 +72,13 @@ def main(argv=None):
     for key in ('server_url', 'mode', 'timeout_s'):
         if getattr(args, key) is not None:
             values[key] = getattr(args, key)
-    router = EdgeRouter(Predictor(args.config, args.checkpoint, args.device),
-                        RouterConfig(**values))
+    local = Predictor(args.config, args.checkpoint, args.device)
+    router = EdgeRouter(local, RouterConfig(**values))
     os.makedirs(args.out_dir, exist_ok=True)
+    server = None if router.cfg.mode == 'local' else router.server_info()
+    with open(osp.join(args.out_dir, 'run.json'), 'w') as f:
+        json.dump(dict(router=router.config(), local=local.info(),
+                       server=server), f, indent=1)
     counts = Counter()
     out = osp.join(args.out_dir, 'results.jsonl')
     with open(out, 'w') as f:

@@ -1,6 +1,5 @@
 """PSNR / SSIM of dehazed foggy images against their clear twins."""
 import math
-import re
 from collections import defaultdict
 from typing import Dict, List, Optional, Sequence
 
@@ -9,12 +8,11 @@ from mmdet.registry import METRICS
 from mmengine.evaluator import BaseMetric
 from mmengine.logging import MMLogger
 
+from cbnet_mmdet.datasets.cityscapes_paths import split_beta
 from cbnet_mmdet.models.losses.ssim_loss import ssim
 
 #: Highest PSNR reported (identical images), dB.
 MAX_PSNR = 100.0
-
-_BETA = re.compile(r'_foggy_beta_([0-9.]+)\.png$')
 
 
 def psnr(x: torch.Tensor, y: torch.Tensor) -> float:
@@ -25,8 +23,7 @@ def psnr(x: torch.Tensor, y: torch.Tensor) -> float:
 
 def beta_of(path: str) -> str:
     """``'..._foggy_beta_0.02.png' -> '0.02'``; ``'clear'`` otherwise."""
-    match = _BETA.search(path or '')
-    return match.group(1) if match else 'clear'
+    return split_beta(path)[1]
 
 
 @METRICS.register_module()
