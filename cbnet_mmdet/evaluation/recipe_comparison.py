@@ -38,6 +38,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from mmengine.config import Config
 
+from ..utils.checkpoint_tools import last_checkpoint_in
 from .ap_drop import ap_drop, test_condition
 
 #: Built-in sets: (recipe name, config path relative to the configs root).
@@ -477,18 +478,15 @@ def resume_iter(work_dir: str) -> Optional[int]:
 
     MMEngine writes ``last_checkpoint`` (the path of the newest checkpoint)
     in the work dir; a run whose file names an existing ``iter_N.pth``
+    (in the work dir, also when it was moved: :func:`last_checkpoint_in`)
     resumes from N (MMEngine restores the weights, the optimizer, the lr
     schedule and skips the data already seen). None: start from 0.
     """
-    marker = osp.join(work_dir, 'last_checkpoint')
-    if not osp.isfile(marker):
+    path, _ = last_checkpoint_in(work_dir)
+    if path is None or not osp.isfile(path):
         return None
-    with open(marker) as f:
-        path = f.read().strip()
     match = re.fullmatch(r'iter_(\d+)\.pth', osp.basename(path))
-    if match is None or not osp.isfile(path):
-        return None
-    return int(match.group(1))
+    return int(match.group(1)) if match else None
 
 
 def checkpoint_file(out_dir: str, name: str, seed: int,
@@ -648,7 +646,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'{seed}, but {checkpoint} does not exist')
         train_time, extra = None, dict(weights_of=weights_of)
     else:
-        resumed = resume_iter(run_dir) if budget.iters > 0 else None
+        resumed = resume_iter(run_dir) \
+            if budget.iters > 0 and cfg.resume else None
         runner = Runner.from_cfg(cfg)
         start = time.perf_counter()
         checkpoint = checkpoint_file(out_dir, name, seed, budget)

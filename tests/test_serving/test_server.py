@@ -28,6 +28,7 @@ from mmengine.registry import init_default_scope
 
 from cbnet_mmdet.serving.predictor import Predictor
 from cbnet_mmdet.serving.router import EdgeRouter, RouterConfig
+from tool_helpers import load_tool
 
 pytestmark = pytest.mark.slow
 
@@ -84,12 +85,18 @@ def server(demo_ckpt, tmp_path_factory):
             pytest.fail('server did not start:\n' + log.read()[-3000:])
         time.sleep(0.5)
     yield dict(url=url, proc=proc)
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGTERM)
+    # the whole group, also when the leader is gone (a test killed it):
+    # Ray's workers may outlive it; a group already gone is no error
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
         try:
             proc.wait(30)
+            break
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
+            continue
     log.close()
 
 
@@ -194,11 +201,7 @@ def test_route_cli_over_a_folder(server, demo_ckpt, frames, tmp_path):
 
 def test_load_test_cli(server, tmp_path):
     """tools/serve/load_test.py (the docs' measurement) on a small image."""
-    sys.path.insert(0, osp.join(ROOT, 'tools', 'serve'))
-    try:
-        import load_test
-    finally:
-        sys.path.pop(0)
+    load_test = load_tool('serve/load_test.py')
     out = tmp_path / 'load.json'
     load_test.main([server['url'], '--size', '64', '128', '--concurrency',
                     '1', '2', '--requests', '2', '--out', str(out)])
