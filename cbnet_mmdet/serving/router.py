@@ -126,7 +126,8 @@ class EdgeRouter:
         reason = decide(self.cfg, transmission, top)
         where, pred = 'local', local
         if reason is None:
-            reason = 'clear and confident'
+            reason = 'always-local' if self.cfg.mode == 'local' else \
+                'clear and confident'
         else:
             try:
                 pred = self.ask_server(img)

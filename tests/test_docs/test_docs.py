@@ -165,7 +165,7 @@ def tool_commands():
                             words[i + 1].endswith('.py'):
                         argv = []
                         for arg in words[i + 2:]:
-                            if arg in ('&&', '|', ';', '>'):
+                            if arg in ('&&', '&', '|', ';', '>'):
                                 break
                             # `a|b`: one of the alternatives
                             arg = arg.strip('[]').split('|')[0]

@@ -92,6 +92,16 @@ def test_clear_confident_frame_stays_local():
     assert rec['reason'] == 'clear and confident'
 
 
+def test_forced_local_frame_says_so():
+    """--mode local keeps a hazy, unsure frame local: the reason names
+    the mode, not the haze rule."""
+    cfg = RouterConfig(server_url=f'http://127.0.0.1:{unused_port()}',
+                       mode='local')
+    rec = EdgeRouter(FakeLocal(0.1), cfg)(fog(scene(), 0.2), 'a.png')
+    assert rec['where'] == 'local'
+    assert rec['reason'] == 'always-local'
+
+
 class Slow(http.server.BaseHTTPRequestHandler):
     """Answers after 3 s, or 503 at once for /busy."""
 
