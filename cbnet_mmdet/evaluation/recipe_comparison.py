@@ -442,8 +442,10 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
                              by_epoch=False)
     cfg.randomness = dict(seed=seed)
     cfg.work_dir = work_dir
-    cfg.load_from = None
-    cfg.resume = resume_iter(work_dir) is not None
+    # resume from the file found, not from the path MMEngine recorded
+    # (which names the original folder of a moved work dir)
+    cfg.load_from = resume_file(work_dir)
+    cfg.resume = cfg.load_from is not None
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
     if budget.img_scale is not None:
         set_img_scale(cfg, budget.img_scale)
@@ -473,20 +475,36 @@ def checkpoint_interval(iters: int) -> int:
     return max(1, -(-iters // 6))
 
 
-def resume_iter(work_dir: str) -> Optional[int]:
-    """The iteration a killed run of ``work_dir`` resumes from.
+#: The file name of an iteration checkpoint MMEngine saves (``iter_N.pth``).
+ITER_CHECKPOINT = re.compile(r'iter_(\d+)\.pth')
+
+
+def resume_file(work_dir: str) -> Optional[str]:
+    """The checkpoint a killed run of ``work_dir`` resumes from.
 
     MMEngine writes ``last_checkpoint`` (the path of the newest checkpoint)
-    in the work dir; a run whose file names an existing ``iter_N.pth``
-    (in the work dir, also when it was moved: :func:`last_checkpoint_in`)
-    resumes from N (MMEngine restores the weights, the optimizer, the lr
-    schedule and skips the data already seen). None: start from 0.
+    in the work dir; a run whose file names an existing ``iter_N.pth`` in
+    the work dir (also when the work dir was moved:
+    :func:`last_checkpoint_in`) resumes from it (MMEngine restores the
+    weights, the optimizer, the lr schedule and skips the data already
+    seen). None: start from 0.
     """
     path, _ = last_checkpoint_in(work_dir)
-    if path is None or not osp.isfile(path):
+    if path is None or not osp.isfile(path) or \
+            ITER_CHECKPOINT.fullmatch(osp.basename(path)) is None:
         return None
-    match = re.fullmatch(r'iter_(\d+)\.pth', osp.basename(path))
-    return int(match.group(1)) if match else None
+    return path
+
+
+def checkpoint_iter(path: str) -> int:
+    """N of a checkpoint ``.../iter_N.pth``."""
+    return int(ITER_CHECKPOINT.fullmatch(osp.basename(path)).group(1))
+
+
+def resume_iter(work_dir: str) -> Optional[int]:
+    """The iteration of :func:`resume_file`, None to start from 0."""
+    path = resume_file(work_dir)
+    return None if path is None else checkpoint_iter(path)
 
 
 def checkpoint_file(out_dir: str, name: str, seed: int,
@@ -646,7 +664,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'{seed}, but {checkpoint} does not exist')
         train_time, extra = None, dict(weights_of=weights_of)
     else:
-        resumed = resume_iter(run_dir) \
+        resumed = checkpoint_iter(cfg.load_from) \
             if budget.iters > 0 and cfg.resume else None
         runner = Runner.from_cfg(cfg)
         start = time.perf_counter()

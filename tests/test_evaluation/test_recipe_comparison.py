@@ -433,6 +433,19 @@ def test_resume_iter_reads_mmengines_marker(tmp_path):
         [1, 1, 20, 100, 101]
 
 
+def test_a_moved_run_resumes_from_its_own_folder(tmp_path):
+    """MMEngine's marker names the ORIGINAL folder's file (absolute
+    path); the run resumes from the copy in its work dir."""
+    moved = tmp_path / 'moved'
+    moved.mkdir()
+    (moved / 'last_checkpoint').write_text(
+        str(tmp_path / 'original' / 'iter_200.pth'))
+    assert rc.resume_file(str(moved)) is None  # no copy: from scratch
+    (moved / 'iter_200.pth').write_bytes(b'')
+    assert rc.resume_file(str(moved)) == str(moved / 'iter_200.pth')
+    assert rc.resume_iter(str(moved)) == 200
+
+
 def test_a_killed_run_resumes_from_its_last_checkpoint(
         cityscapes_like_root, tmp_path):
     """A run stopped at iteration 3 of 6 (a session's end) goes on from
@@ -451,8 +464,10 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(
     with pytest.raises(Exception):
         rc.run_recipe(*args, cfg_options={'train_cfg.max_iters': 3})
     assert rc.resume_iter(run_dir) == 3
-    assert rc.budget_cfg(crpn, budget, 0, cityscapes_like_root,
-                         run_dir).resume is True
+    cfg = rc.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
+    assert cfg.resume is True
+    # MMEngine resumes from load_from: the file found in the work dir
+    assert cfg.load_from == osp.join(run_dir, 'iter_3.pth')
     result = rc.run_recipe(*args)
     assert result['resumed_at_iter'] == 3
     assert result['train_time_extrapolated'] is True

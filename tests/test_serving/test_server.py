@@ -90,13 +90,12 @@ def server(demo_ckpt, tmp_path_factory):
     for sig in (signal.SIGTERM, signal.SIGKILL):
         try:
             os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            break
-        try:
             proc.wait(30)
             break
+        except ProcessLookupError:
+            break
         except subprocess.TimeoutExpired:
-            continue
+            pass  # SIGKILL next
     log.close()
 
 
