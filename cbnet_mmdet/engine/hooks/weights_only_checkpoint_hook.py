@@ -69,10 +69,12 @@ def from_weights_only(obj: Any) -> Any:
             return HistoryBuffer(
                 from_weights_only(obj['log_history']),
                 from_weights_only(obj['count_history']), obj['max_length'])
+        # the runner resumes with map_location=its device: on a GPU the
+        # tensors arrive there, and NumPy needs them on the host
         if kind == 'ndarray':
-            return obj['data'].numpy()
+            return obj['data'].cpu().numpy()
         if kind == 'numpy_scalar':
-            return obj['data'].numpy()[()]
+            return obj['data'].cpu().numpy()[()]
         return type(obj)((k, from_weights_only(v)) for k, v in obj.items())
     if isinstance(obj, (list, tuple)) and not hasattr(obj, '_fields'):
         return type(obj)(from_weights_only(v) for v in obj)

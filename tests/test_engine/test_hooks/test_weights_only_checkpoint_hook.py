@@ -139,6 +139,51 @@ def test_conversion_round_trip_is_exact():
     assert back['d'] is obj['d']  # no tensor dtype: left as it is
 
 
+class _DeviceTensor:
+    """A tensor as ``torch.load(map_location='cuda')`` returns it, seen by
+    NumPy: ``numpy()`` refuses (torch's own message) until ``cpu()``."""
+
+    def __init__(self, tensor):
+        self.tensor = tensor
+
+    def numpy(self):
+        raise TypeError("can't convert cuda:0 device type tensor to numpy. "
+                        'Use Tensor.cpu() to copy the tensor to host memory '
+                        'first.')
+
+    def cpu(self):
+        return self.tensor
+
+
+def _on_device(obj, move):
+    """The converted checkpoint with its tensors put where ``move`` says."""
+    if isinstance(obj, dict):
+        return {k: _on_device(v, move) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_on_device(v, move) for v in obj)
+    return move(obj) if torch.is_tensor(obj) else obj
+
+
+def test_resume_on_a_gpu_brings_arrays_back_to_the_host():
+    """``Runner.resume`` loads with ``map_location`` = the training device;
+    on a GPU the message hub's arrays arrived there and NumPy refused them
+    (found resuming a harness run on an H100, 2026-11-25)."""
+    buf = HistoryBuffer([1.5, 2.25], [1, 2], max_length=7)
+    plain = to_weights_only(dict(b=buf, s=np.float64(0.25)))
+    back = from_weights_only(_on_device(plain, _DeviceTensor))
+    assert back['b'].max_length == 7 and back['b'].mean() == buf.mean()
+    assert type(back['s']) is np.float64 and back['s'] == 0.25
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason='needs CUDA')
+def test_resume_on_cuda_for_real(tmp_path):
+    buf = HistoryBuffer([1.5, 2.25], [1, 2], max_length=7)
+    path = str(tmp_path / 'ckpt.pth')
+    torch.save(to_weights_only(dict(b=buf)), path)
+    back = from_weights_only(torch.load(path, map_location='cuda'))
+    np.testing.assert_array_equal(back['b'].data[0], buf.data[0])
+
+
 @pytest.mark.slow  # builds the demo model and predicts in a subprocess
 def test_det_inferencer_from_checkpoint_alone(run, tmp_path,
                                               cityscapes_like_root):
