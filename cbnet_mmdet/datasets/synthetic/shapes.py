@@ -86,7 +86,8 @@ def inset(poly: Loop, t: float) -> Loop:
 def tube_loop(poly: Loop, width: float) -> List[Loop]:
     """A closed frame of tubes along a convex polygon's edges."""
     poly = np.asarray(poly, float)
-    if np.cross(poly[1] - poly[0], poly[2] - poly[1]) < 0:
+    (ax, ay), (bx, by) = poly[1] - poly[0], poly[2] - poly[1]
+    if ax * by - ay * bx < 0:  # clockwise (NumPy 2 has no 2-D np.cross)
         poly = poly[::-1]
     return [inset(poly, -width / 2), inset(poly, width / 2)[::-1]]
 
