@@ -108,10 +108,12 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
         normalize_by_num_pos (bool): Average the losses over positive
             anchors (True) or over ``anchors / 200`` as MMDet's stage head
             does without a sampler. Defaults to True.
-        deform_impl (str): Stage 2's deformable convolution: ``'gather'``
-            (:class:`CBNetDeformConv2d`, 2-4x faster on CPU) or ``'mmcv'``
-            (``mmcv.ops.DeformConv2d``); the same function and weights.
-            Defaults to ``'gather'``.
+        deform_impl (str): Stage 2's deformable convolution: ``'auto'``
+            (:class:`CBNetDeformConv2d`'s gather kernel on CPU, where it is
+            2-4x faster, mmcv's kernel on other devices, where mmcv's was
+            measured faster), ``'gather'`` (the gather kernel everywhere)
+            or ``'mmcv'`` (``mmcv.ops.DeformConv2d``); the same function and
+            weights. Defaults to ``'auto'``.
         train_cfg (list[dict], optional): One training config per stage
             (assigner, optional sampler, ``allowed_border``, ``pos_weight``).
             None uses ``DEFAULT_TRAIN_CFG``.
@@ -143,7 +145,7 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
                      type='GIoULoss', loss_weight=10.0),
                  obj_prior_prob: float = 0.01,
                  normalize_by_num_pos: bool = True,
-                 deform_impl: str = 'gather',
+                 deform_impl: str = 'auto',
                  train_cfg: Optional[Union[List[ConfigType],
                                            ConfigType]] = None,
                  test_cfg: OptConfigType = None,

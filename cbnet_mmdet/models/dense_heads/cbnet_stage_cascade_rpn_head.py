@@ -30,39 +30,42 @@ class CBNetStageCascadeRPNHead(StageCascadeRPNHead):
     With a sampler in ``train_cfg`` the sampler's average factor is used
     either way, as in MMDet.
 
-    The offset-mode adaptive convolution (stage 2) is computed by
-    :class:`CBNetDeformConv2d` (``deform_impl='gather'``, default): the same
-    function and parameter as mmcv's ``DeformConv2d`` (``'mmcv'``), 2-4x
-    faster on CPU at inference and ~6x with the backward pass; the
-    deformable convolution at the stride-4 level was the largest part of
-    the head's time.
+    The offset-mode adaptive convolution (stage 2) is a
+    :class:`CBNetDeformConv2d` (the same function and parameter as mmcv's
+    ``DeformConv2d``): with ``deform_impl='auto'`` (default) it runs the
+    gather kernel on CPU, 2-4x faster than mmcv's there at inference and
+    ~6x with the backward pass (the deformable convolution at the stride-4
+    level was the largest part of the head's time), and mmcv's kernel on
+    other devices, where it was measured faster (H100: 2.2-3.8x at
+    inference); ``'gather'`` forces the gather kernel everywhere, ``'mmcv'``
+    keeps mmcv's module.
 
     Args:
         normalize_by_num_pos (bool): Average the losses over positive
             anchors instead of ``anchors / 200``. Defaults to True.
-        deform_impl (str): ``'gather'`` or ``'mmcv'``. Defaults to
-            ``'gather'``.
+        deform_impl (str): ``'auto'``, ``'gather'`` or ``'mmcv'``. Defaults
+            to ``'auto'``.
         **kwargs: Arguments of :class:`StageCascadeRPNHead`.
     """
 
     def __init__(self, *args, normalize_by_num_pos: bool = True,
-                 deform_impl: str = 'gather', **kwargs) -> None:
-        if deform_impl not in ('gather', 'mmcv'):
+                 deform_impl: str = 'auto', **kwargs) -> None:
+        if deform_impl not in ('auto', 'gather', 'mmcv'):
             raise ValueError(
-                "CBNetStageCascadeRPNHead: deform_impl must be 'gather' or "
-                f"'mmcv', got {deform_impl!r}")
+                "CBNetStageCascadeRPNHead: deform_impl must be 'auto', "
+                f"'gather' or 'mmcv', got {deform_impl!r}")
         self.normalize_by_num_pos = normalize_by_num_pos
         self.deform_impl = deform_impl
         super().__init__(*args, **kwargs)
 
     def _init_layers(self) -> None:
         """MMDet's layers; stage 2's deformable convolution swapped for
-        :class:`CBNetDeformConv2d` (same parameter) with ``'gather'``."""
+        :class:`CBNetDeformConv2d` (same parameter) unless ``'mmcv'``."""
         super()._init_layers()
-        if self.deform_impl == 'gather' and \
+        if self.deform_impl != 'mmcv' and \
                 self.rpn_conv.adapt_type == 'offset':
             self.rpn_conv.conv = CBNetDeformConv2d.from_mmcv(
-                self.rpn_conv.conv)
+                self.rpn_conv.conv, self.deform_impl)
 
     def get_targets(self, *args, **kwargs) -> Tuple:
         """Targets of :class:`StageCascadeRPNHead`, avg factor = positives.

@@ -3,6 +3,7 @@ from typing import Optional, Tuple, Union
 
 import torch
 import torch.nn.functional as F
+from mmcv.ops import deform_conv2d as mmcv_deform_conv2d
 from mmdet.registry import MODELS
 from torch import Tensor, nn
 from torch.nn.modules.utils import _pair
@@ -90,10 +91,23 @@ def deform_conv2d(x: Tensor,
     return out.view(n, h_out, w_out, out_c).permute(0, 3, 1, 2).contiguous()
 
 
+#: Where :func:`deform_conv2d` was measured faster than mmcv's kernel, so
+#: that ``impl='auto'`` uses it: on CPU 2-4x at inference, ~6x with the
+#: backward pass (docs/benchmarks.md). On an H100 (CUDA) mmcv's kernel
+#: wins at inference, 2.2-3.8x at 512x1024 and 1024x2048, and the training
+#: pass is a draw (gather 1.09x at 512x1024, 0.85x at 1024x2048):
+#: ``tools/analysis_tools/benchmark_kernels.py --device cuda``,
+#: docs/benchmarks.md "Custom kernels on each device".
+GATHER_FASTER_ON = ('cpu', )
+
+
 @MODELS.register_module()
 class CBNetDeformConv2d(nn.Module):
     """Drop-in for ``mmcv.ops.DeformConv2d`` (no bias, one group, one
-    deformable group), computed by :func:`deform_conv2d`.
+    deformable group), computed by :func:`deform_conv2d` on the devices
+    where that was measured faster (``GATHER_FASTER_ON``: the CPU) and by
+    mmcv's kernel elsewhere (``impl='auto'``); ``impl='gather'`` uses
+    :func:`deform_conv2d` everywhere.
 
     Same ``weight`` parameter and state-dict key as mmcv's module, so a
     checkpoint of either loads into the other (``from_mmcv`` converts a
@@ -107,6 +121,8 @@ class CBNetDeformConv2d(nn.Module):
         weight (nn.Parameter, optional): Use this ``Tensor[out_channels,
             in_channels, kh, kw]`` parameter (shared, not re-initialised,
             no random numbers drawn) instead of a new one.
+        impl (str): ``'auto'`` (per device, above) or ``'gather'``.
+            Defaults to ``'auto'``.
     """
 
     def __init__(self,
@@ -116,8 +132,13 @@ class CBNetDeformConv2d(nn.Module):
                  stride: Union[int, Tuple[int, int]] = 1,
                  padding: Union[int, Tuple[int, int]] = 0,
                  dilation: Union[int, Tuple[int, int]] = 1,
-                 weight: Optional[nn.Parameter] = None) -> None:
+                 weight: Optional[nn.Parameter] = None,
+                 impl: str = 'auto') -> None:
         super().__init__()
+        if impl not in ('auto', 'gather'):
+            raise ValueError("CBNetDeformConv2d: impl must be 'auto' or "
+                             f"'gather', got {impl!r}")
+        self.impl = impl
         self.in_channels, self.out_channels = in_channels, out_channels
         self.kernel_size = _pair(kernel_size)
         self.stride, self.padding = _pair(stride), _pair(padding)
@@ -132,7 +153,8 @@ class CBNetDeformConv2d(nn.Module):
         self.weight = weight
 
     @classmethod
-    def from_mmcv(cls, conv: nn.Module) -> 'CBNetDeformConv2d':
+    def from_mmcv(cls, conv: nn.Module,
+                  impl: str = 'auto') -> 'CBNetDeformConv2d':
         """The same convolution as an ``mmcv.ops.DeformConv2d``, sharing
         its ``weight`` parameter."""
         if conv.groups != 1 or conv.deform_groups != 1:
@@ -144,15 +166,20 @@ class CBNetDeformConv2d(nn.Module):
         # the same parameter, and no random numbers drawn: a model built
         # with either implementation gets the same initial weights
         return cls(conv.in_channels, conv.out_channels, conv.kernel_size,
-                   conv.stride, conv.padding, conv.dilation, conv.weight)
+                   conv.stride, conv.padding, conv.dilation, conv.weight,
+                   impl)
 
     def forward(self, x: Tensor, offset: Tensor) -> Tensor:
         """``Tensor[N, C, H, W]``, offsets ``Tensor[N, 2*kh*kw, H', W']`` ->
         ``Tensor[N, out_channels, H', W']``."""
+        if self.impl == 'auto' and x.device.type not in GATHER_FASTER_ON:
+            return mmcv_deform_conv2d(x, offset, self.weight, self.stride,
+                                      self.padding, self.dilation)
         return deform_conv2d(x, offset, self.weight, self.stride,
                              self.padding, self.dilation)
 
     def extra_repr(self) -> str:
         return (f'{self.in_channels}, {self.out_channels}, kernel_size='
                 f'{self.kernel_size}, stride={self.stride}, padding='
-                f'{self.padding}, dilation={self.dilation}')
+                f'{self.padding}, dilation={self.dilation}, '
+                f'impl={self.impl!r}')

@@ -52,13 +52,14 @@ import math
 from typing import Optional
 
 import torch
+import torch.nn.functional as F
 from torch import Tensor
 from torch.autograd.function import once_differentiable
 
 __all__ = [
     'mask_diagonal', 'mask_contour', 'dice_coefficient',
     'squared_distance_to_set', 'hausdorff_distance',
-    'distance_weighted_error', 'boundary_loss'
+    'distance_weighted_error', 'boundary_loss', 'boundary_loss_autograd'
 ]
 
 
@@ -78,6 +79,13 @@ def _check_kernel(kernel_size: int) -> None:
     if kernel_size < 3 or kernel_size % 2 == 0:
         raise ValueError('kernel_size (edge_kernel) must be an odd integer '
                          f'>= 3, got {kernel_size}')
+
+
+def _check_edge_args(alpha: float, kernel_size: int, stride: int) -> None:
+    if alpha <= 0:
+        raise ValueError(f'alpha must be > 0, got {alpha}')
+    _check_kernel(kernel_size)
+    _check_stride(stride)
 
 
 def _check_pair(name: str, masks: Tensor, other_name: str,
@@ -405,10 +413,7 @@ def distance_weighted_error(probs: Tensor,
         Tensor: ``Tensor[N]`` in ``[0, 1]``.
     """
     _check_pair('probs', probs, 'targets', targets)
-    if alpha <= 0:
-        raise ValueError(f'alpha must be > 0, got {alpha}')
-    _check_kernel(kernel_size)
-    _check_stride(dist_stride)
+    _check_edge_args(alpha, kernel_size, dist_stride)
     num, h, w = probs.shape
     with torch.no_grad():
         # target and thresholded prediction in one batch
@@ -596,10 +601,7 @@ def boundary_loss(logits: Tensor,
                 f'index {tuple(index.shape)} must select one logits row '
                 f'{tuple(logits.shape[1:])} per target '
                 f'{tuple(targets.shape)}')
-    if alpha <= 0:
-        raise ValueError(f'alpha must be > 0, got {alpha}')
-    _check_kernel(kernel_size)
-    _check_stride(dist_stride)
+    _check_edge_args(alpha, kernel_size, dist_stride)
     if logits.dtype in (torch.float16, torch.bfloat16):
         logits = logits.float()  # e.g. under autocast: sums, products
     targets = targets.to(logits.dtype)
@@ -614,6 +616,53 @@ def boundary_loss(logits: Tensor,
     edge = (alpha, kernel_size, int(dist_stride)) if use_edge else None
     return _BoundaryLoss.apply(logits, index, targets, float(lambda_shape),
                                bool(use_shape), float(lambda_edge), edge)
+
+
+def boundary_loss_autograd(logits: Tensor,
+                           targets: Tensor,
+                           lambda_shape: float = 1.0,
+                           use_shape: bool = True,
+                           lambda_edge: float = 1.0,
+                           use_edge: bool = True,
+                           alpha: float = 2.0,
+                           kernel_size: int = 3,
+                           dist_stride: int = 1,
+                           index: Optional[Tensor] = None) -> Tensor:
+    """:func:`boundary_loss` composed of differentiable tensor functions.
+
+    MMDet's mask BCE (``binary_cross_entropy_with_logits``, pixel mean),
+    :func:`dice_coefficient` and the edge term with its distance maps as
+    constants, every differentiable step left to autograd: the readable
+    form of the loss, the reference the fused function is tested against,
+    and the implementation ``CBNetBoundaryAwareLoss(impl='autograd')``
+    runs. Same arguments and result as :func:`boundary_loss`.
+    """
+    if index is not None:
+        logits = logits.index_select(0, index)
+    _check_pair('logits', logits, 'targets', targets)
+    _check_edge_args(alpha, kernel_size, dist_stride)
+    if logits.dtype in (torch.float16, torch.bfloat16):
+        logits = logits.float()
+    targets = targets.to(logits.dtype)
+    probs = logits.sigmoid()
+    loss = F.binary_cross_entropy_with_logits(
+        logits, targets, reduction='none').flatten(1).mean(1)
+    if use_shape:
+        loss = loss + 1 - dice_coefficient(probs, targets)
+    loss = lambda_shape * loss
+    if use_edge and len(targets):
+        _, h, w = logits.shape
+        with torch.no_grad():
+            target_bin = targets > 0.5
+            weight = sum(
+                (squared_distance_to_set(
+                    mask_contour(m, kernel_size), stride=dist_stride) /
+                 mask_diagonal(h, w)**2).pow(alpha / 2)
+                for m in (target_bin, probs >= 0.5)).to(logits.dtype)
+        edge = ((probs - target_bin.to(logits.dtype))**2 *
+                weight).flatten(1).mean(1) / 2
+        loss = loss + lambda_edge * edge
+    return loss
 
 
 def _log_chunks(numel: int, dtype: torch.dtype) -> int:

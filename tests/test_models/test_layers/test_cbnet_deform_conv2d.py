@@ -130,3 +130,56 @@ def test_swapping_draws_no_random_numbers():
     for key, value in states[0][0].items():
         assert torch.equal(value, states[1][0][key]), key
     assert torch.equal(states[0][1], states[1][1])
+
+
+def test_auto_runs_mmcv_kernel_where_gather_was_not_measured_faster(
+        monkeypatch):
+    """``impl='auto'`` uses the gather kernel only on the devices of
+    ``GATHER_FASTER_ON`` (the CPU): with the CPU taken off that list, the
+    CPU stands for a device where it was not measured faster (a GPU), and
+    mmcv's kernel must run; ``impl='gather'`` keeps the gather kernel."""
+    from cbnet_mmdet.models.layers import cbnet_deform_conv2d as mod
+    ref, auto = pair(padding=1)
+    forced = CBNetDeformConv2d.from_mmcv(ref, impl='gather')
+    x = torch.randn(2, 5, 9, 13)
+    offset = torch.randn(2, 18, 9, 13)
+    gather_calls = []
+
+    def counted(*args):
+        gather_calls.append(1)
+        return deform_conv2d(*args)
+
+    monkeypatch.setattr(mod, 'deform_conv2d', counted)
+    auto(x, offset)
+    assert gather_calls == [1]  # on the CPU: the gather kernel
+    monkeypatch.setattr(mod, 'GATHER_FASTER_ON', ())
+    out = auto(x, offset)
+    assert gather_calls == [1]  # elsewhere: mmcv's
+    assert torch.equal(out, ref(x, offset))
+    forced(x, offset)
+    assert gather_calls == [1, 1]
+
+
+def test_impl_is_checked_and_shown():
+    with pytest.raises(ValueError, match="'auto' or 'gather'"):
+        CBNetDeformConv2d(4, 4, 3, impl='mmcv')
+    from mmdet.registry import MODELS
+    with pytest.raises(ValueError, match="'auto', 'gather' or 'mmcv'"):
+        MODELS.build(dict(type='CBNetCascadeRPNHead', in_channels=8,
+                          feat_channels=8, deform_impl='fast'))
+    head = MODELS.build(dict(type='CBNetCascadeRPNHead', in_channels=8,
+                             feat_channels=8))
+    conv = head.stages[1].rpn_conv.conv
+    assert isinstance(conv, CBNetDeformConv2d) and conv.impl == 'auto'
+    assert "impl='auto'" in repr(conv)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason='needs CUDA')
+def test_auto_on_cuda_equals_the_gather_kernel():
+    ref, auto = pair(padding=1)
+    forced = CBNetDeformConv2d.from_mmcv(ref, impl='gather')
+    auto, forced = auto.cuda(), forced.cuda()
+    x = torch.randn(2, 5, 9, 13, device='cuda')
+    offset = torch.randn(2, 18, 9, 13, device='cuda')
+    torch.testing.assert_close(auto(x, offset), forced(x, offset),
+                               rtol=1e-4, atol=1e-4)

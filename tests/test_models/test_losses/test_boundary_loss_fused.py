@@ -2,43 +2,12 @@
 import numpy as np
 import pytest
 import torch
-import torch.nn.functional as F
 from mmdet.registry import MODELS
 from scipy import ndimage
 
 import cbnet_mmdet  # noqa: F401  (registers the loss)
 from cbnet_mmdet.models.losses.boundary_ops import (boundary_loss,
-                                                    dice_coefficient,
-                                                    mask_contour,
-                                                    mask_diagonal,
-                                                    squared_distance_to_set)
-
-
-def plain_losses(logits, targets, lambda_shape=1., use_shape=True,
-                 lambda_edge=1., use_edge=True, alpha=2., kernel_size=3,
-                 dist_stride=1):
-    """The loss as composed before the fusion (BCE of MMDet, Dice, edge
-    term), every differentiable step left to autograd."""
-    targets = targets.to(logits.dtype)
-    probs = logits.sigmoid()
-    loss = F.binary_cross_entropy_with_logits(
-        logits, targets, reduction='none').flatten(1).mean(1)
-    if use_shape:
-        loss = loss + 1 - dice_coefficient(probs, targets)
-    loss = lambda_shape * loss
-    if use_edge:
-        _, h, w = logits.shape
-        with torch.no_grad():
-            target_bin = targets > 0.5
-            weight = sum(
-                (squared_distance_to_set(
-                    mask_contour(m, kernel_size), stride=dist_stride) /
-                 mask_diagonal(h, w)**2).pow(alpha / 2)
-                for m in (target_bin, probs >= 0.5)).to(logits.dtype)
-        edge = ((probs - target_bin.to(logits.dtype))**2 *
-                weight).flatten(1).mean(1) / 2
-        loss = loss + lambda_edge * edge
-    return loss
+                                                    boundary_loss_autograd)
 
 
 def blob_inputs(num, size, seed, dtype=torch.float32):
@@ -102,7 +71,7 @@ def test_gradcheck_soft_targets():
     loss, grad = torch.autograd.grad(
         boundary_loss(logits, targets).sum(), (logits, targets))
     ref, ref_grad = torch.autograd.grad(
-        plain_losses(logits, targets).sum(), (logits, targets))
+        boundary_loss_autograd(logits, targets).sum(), (logits, targets))
     torch.testing.assert_close(loss, ref)
     torch.testing.assert_close(grad, ref_grad)
 
@@ -117,8 +86,8 @@ def test_matches_plain_composition(dist_stride, size):
                 dict(alpha=1.5)):
         loss, grad = grads(boundary_loss, logits, targets, grad_out,
                            dist_stride=dist_stride, **cfg)
-        ref, ref_grad = grads(plain_losses, logits, targets, grad_out,
-                              dist_stride=dist_stride, **cfg)
+        ref, ref_grad = grads(boundary_loss_autograd, logits, targets,
+                              grad_out, dist_stride=dist_stride, **cfg)
         torch.testing.assert_close(loss, ref, rtol=1e-5, atol=1e-6)
         torch.testing.assert_close(grad, ref_grad, rtol=1e-4, atol=1e-8)
 
@@ -139,7 +108,7 @@ def test_constant_masks(case):
     grad_out = torch.ones(6)
     loss, grad = grads(boundary_loss, logits, targets, grad_out,
                        dist_stride=2)
-    ref, ref_grad = grads(plain_losses, logits, targets, grad_out,
+    ref, ref_grad = grads(boundary_loss_autograd, logits, targets, grad_out,
                           dist_stride=2)
     assert torch.isfinite(loss).all() and torch.isfinite(grad).all()
     torch.testing.assert_close(loss, ref, rtol=1e-5, atol=1e-6)
@@ -157,12 +126,12 @@ def test_empty_and_dtypes():
     out = boundary_loss(logits, targets, dist_stride=2)
     assert out.dtype == torch.float64
     torch.testing.assert_close(
-        out, plain_losses(logits, targets, dist_stride=2))
+        out, boundary_loss_autograd(logits, targets, dist_stride=2))
     half = boundary_loss(logits.half(), targets.half(), dist_stride=2)
     assert half.dtype == torch.float32
     torch.testing.assert_close(
         half.double(),
-        plain_losses(logits.half().double(), targets, dist_stride=2),
+        boundary_loss_autograd(logits.half().double(), targets, dist_stride=2),
         rtol=1e-5, atol=1e-6)
 
 
@@ -183,8 +152,8 @@ def test_module_gradient_wrt_pred(weighted):
     loss = loss_fn(pred, targets, label, weight=weight, avg_factor=7.)
     grad, = torch.autograd.grad(loss, pred)
     ref_pred = pred.detach().clone().requires_grad_()
-    ref = plain_losses(ref_pred[torch.arange(32), label], targets,
-                       dist_stride=2)
+    ref = boundary_loss_autograd(ref_pred[torch.arange(32), label],
+                                 targets, dist_stride=2)
     ref = 2. * (ref if weight is None else ref * weight).sum() / 7.
     ref_grad, = torch.autograd.grad(ref, ref_pred)
     torch.testing.assert_close(loss, ref)
@@ -202,7 +171,7 @@ def test_index_and_soft_target_gradients():
     grad_out = torch.rand(4, generator=gen, dtype=torch.float64)
     out = boundary_loss(logits, targets, index=index, dist_stride=2)
     grads_ = torch.autograd.grad(out, (logits, targets), grad_out)
-    ref = plain_losses(logits[index], targets, dist_stride=2)
+    ref = boundary_loss_autograd(logits[index], targets, dist_stride=2)
     ref_grads = torch.autograd.grad(ref, (logits, targets), grad_out)
     torch.testing.assert_close(out, ref)
     for got, want in zip(grads_, ref_grads):
@@ -220,3 +189,24 @@ def test_no_grad_mode():
     assert out.grad_fn is None and not out.requires_grad
     torch.testing.assert_close(
         out, boundary_loss(logits, targets, dist_stride=2).detach())
+
+
+def test_autograd_form_selects_rows_and_takes_empty_input():
+    """``boundary_loss_autograd`` (the stock-ops form) with ``index`` is
+    the loss of the selected rows, as the fused function's; no instance
+    gives an empty result, not an error."""
+    logits, targets = blob_inputs(6, 16, seed=3)
+    stacked = torch.cat([logits, -logits])  # rows 0-5 and their negation
+    index = torch.tensor([6, 1, 8, 3, 10, 5])
+    expected = boundary_loss_autograd(stacked[index], targets, dist_stride=2)
+    torch.testing.assert_close(
+        boundary_loss_autograd(stacked, targets, index=index, dist_stride=2),
+        expected)
+    torch.testing.assert_close(
+        boundary_loss(stacked, targets, index=index, dist_stride=2),
+        expected, rtol=1e-5, atol=1e-6)
+    empty = boundary_loss_autograd(torch.zeros(0, 16, 16),
+                                   torch.zeros(0, 16, 16))
+    assert empty.shape == (0, )
+    with pytest.raises(ValueError, match='alpha'):
+        boundary_loss_autograd(logits, targets, alpha=0)
