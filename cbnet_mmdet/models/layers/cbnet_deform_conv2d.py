@@ -172,9 +172,18 @@ class CBNetDeformConv2d(nn.Module):
     def forward(self, x: Tensor, offset: Tensor) -> Tensor:
         """``Tensor[N, C, H, W]``, offsets ``Tensor[N, 2*kh*kw, H', W']`` ->
         ``Tensor[N, out_channels, H', W']``."""
-        if self.impl == 'auto' and x.device.type not in GATHER_FASTER_ON:
+        if self.impl == 'auto' and x.device.type not in GATHER_FASTER_ON \
+                and x.shape[0] > 0 and x.shape[2] >= self.kernel_size[0] \
+                and x.shape[3] >= self.kernel_size[1]:
+            # mmcv's kernel refuses maps smaller than the kernel (padding
+            # not counted: the stride-64/128 levels of a small image) and
+            # empty batches, which the gather kernel computes; it splits the
+            # batch into chunks of im2col_step images, which must divide it
+            n = x.shape[0]
+            step = next(s for s in range(min(32, n), 0, -1) if n % s == 0)
             return mmcv_deform_conv2d(x, offset, self.weight, self.stride,
-                                      self.padding, self.dilation)
+                                      self.padding, self.dilation, 1, 1,
+                                      False, step)
         return deform_conv2d(x, offset, self.weight, self.stride,
                              self.padding, self.dilation)
 

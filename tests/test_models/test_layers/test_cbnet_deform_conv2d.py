@@ -160,6 +160,24 @@ def test_auto_runs_mmcv_kernel_where_gather_was_not_measured_faster(
     assert gather_calls == [1, 1]
 
 
+@pytest.mark.parametrize('n,hw', [(2, (1, 2)), (2, (2, 9)), (33, (4, 5)),
+                                  (0, (4, 5))])
+def test_auto_where_mmcv_kernel_refuses(monkeypatch, n, hw):
+    """Off the gather kernel's devices, maps smaller than the kernel (the
+    coarse levels of a small image; mmcv's kernel raises 'input image is
+    smaller than kernel', found training the demo CBNet on an H100) go to
+    the gather kernel, and a batch that 32 does not divide (mmcv's
+    im2col_step) to mmcv's kernel in chunks that do; empty batches too."""
+    from cbnet_mmdet.models.layers import cbnet_deform_conv2d as mod
+    ref, auto = pair(padding=1)
+    forced = CBNetDeformConv2d.from_mmcv(ref, impl='gather')
+    monkeypatch.setattr(mod, 'GATHER_FASTER_ON', ())
+    x = torch.randn(n, 5, *hw)
+    offset = torch.randn(n, 18, *hw)
+    torch.testing.assert_close(auto(x, offset), forced(x, offset),
+                               rtol=1e-5, atol=1e-5)
+
+
 def test_impl_is_checked_and_shown():
     with pytest.raises(ValueError, match="'auto' or 'gather'"):
         CBNetDeformConv2d(4, 4, 3, impl='mmcv')
