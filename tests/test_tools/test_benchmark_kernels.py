@@ -31,3 +31,11 @@ def test_small_run_writes_every_kernel_against_its_stock_op(tmp_path):
     for (setting, impl), r in by.items():
         assert r['vs_stock'] == pytest.approx(
             r['median_ms'] / by[(setting, 'mmcv')]['median_ms'])
+
+
+def test_a_size_too_small_for_the_baseline_is_refused(tmp_path):
+    tool = load_tool('analysis_tools/benchmark_kernels.py')
+    with pytest.raises(SystemExit, match='smaller than 3x3'):
+        tool.main(['--size', '64', '128', '--out',
+                   str(tmp_path / 'k.json')])
+    assert not (tmp_path / 'k.json').exists()

@@ -154,6 +154,13 @@ def main(argv=None):
     if args.threads:
         torch.set_num_threads(args.threads)
     sizes = args.size or [[512, 1024]]
+    for h, w in sizes:
+        if -(-min(h, w) // STRIDES[-1]) < 3:
+            # mmcv's kernel refuses maps smaller than the 3x3 kernel
+            sys.exit(f'--size {h} {w}: the stride-{STRIDES[-1]} level would '
+                     'be smaller than 3x3, which mmcv\'s kernel (the '
+                     f'baseline) refuses; use at least {2 * STRIDES[-1] + 1} '
+                     'px on each side')
     device = args.device
     stock = stock_deform_ops()
     if 'mmcv' not in stock:
