@@ -1,0 +1,143 @@
+"""What the RPN of a trained model hands its RoI heads, on the test split.
+
+For each ``CONFIG CHECKPOINT`` pair, the test-time proposals of every test
+image (the config's ``test_cfg.rpn``, in the resized image's coordinates)
+against the ground-truth boxes scaled the same way:
+
+* recall at IoU 0.5 / 0.7 / 0.9 (share of GT boxes with a proposal at or
+  above it) and the mean best IoU per GT box: how well objects are found;
+* the share of proposals whose best IoU with a GT box is at least 0.5 /
+  0.6 / 0.7: how many of the RoIs the box stages see are positives at the
+  cascade's thresholds (the rest are background to them).
+
+Usage::
+
+    python tools/analysis_tools/proposal_quality.py \\
+        CONFIG CHECKPOINT [CONFIG CHECKPOINT ...] [--names A B ...] \\
+        [--data-root DIR] [--max-images N] [--out work_dirs/proposals.json]
+
+Prints a markdown table and writes the figures as JSON.
+"""
+import argparse
+import json
+import os
+import os.path as osp
+
+import torch
+from mmengine.config import Config
+from mmengine.dataset import pseudo_collate
+from mmengine.registry import init_default_scope
+
+RECALL_IOUS = (0.5, 0.7, 0.9)
+POSITIVE_IOUS = (0.5, 0.6, 0.7)
+
+
+def proposal_quality(model, dataset, max_images=None) -> dict:
+    """Proposal statistics of ``model`` (eval mode) over ``dataset``."""
+    from mmdet.structures.bbox import bbox_overlaps
+    best_per_gt, best_per_proposal, counts = [], [], []
+    num = len(dataset) if max_images is None else min(max_images,
+                                                      len(dataset))
+    with torch.no_grad():
+        for i in range(num):
+            data = model.data_preprocessor(pseudo_collate([dataset[i]]),
+                                           False)
+            sample = data['data_samples'][0]
+            feats = model.extract_feat(data['inputs'])
+            props = model.rpn_head.predict(
+                feats, data['data_samples'], rescale=False)[0].bboxes
+            gt = sample.gt_instances.bboxes
+            gt = getattr(gt, 'tensor', gt).to(props)
+            # GT boxes are in the original image; proposals in the resized
+            sx, sy = sample.metainfo['scale_factor']
+            gt = gt * gt.new_tensor([sx, sy, sx, sy])
+            counts.append(len(props))
+            ious = bbox_overlaps(gt, props)
+            if len(gt) and len(props):
+                best_per_gt.append(ious.max(1).values)
+                best_per_proposal.append(ious.max(0).values)
+            else:
+                best_per_gt.append(props.new_zeros(len(gt)))
+                best_per_proposal.append(props.new_zeros(len(props)))
+    per_gt = torch.cat(best_per_gt) if best_per_gt else torch.zeros(0)
+    per_prop = (torch.cat(best_per_proposal) if best_per_proposal else
+                torch.zeros(0))
+
+    def share(values, t):
+        return float((values >= t).float().mean()) if len(values) else 0.
+
+    return dict(
+        images=num,
+        gt_boxes=len(per_gt),
+        proposals_per_image=sum(counts) / max(num, 1),
+        recall={str(t): share(per_gt, t) for t in RECALL_IOUS},
+        mean_best_iou=float(per_gt.mean()) if len(per_gt) else 0.,
+        positive_share={str(t): share(per_prop, t) for t in POSITIVE_IOUS})
+
+
+def to_markdown(results: dict) -> str:
+    head = (['model', 'proposals / image'] +
+            [f'recall@{t}' for t in RECALL_IOUS] + ['mean best IoU'] +
+            [f'proposals IoU>={t}' for t in POSITIVE_IOUS])
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for name, r in results.items():
+        cells = ([name, f"{r['proposals_per_image']:.0f}"] +
+                 [f"{r['recall'][str(t)]:.3f}" for t in RECALL_IOUS] +
+                 [f"{r['mean_best_iou']:.3f}"] +
+                 [f"{r['positive_share'][str(t)]:.3f}"
+                  for t in POSITIVE_IOUS])
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines)
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('pairs', nargs='+', metavar='CONFIG CHECKPOINT')
+    parser.add_argument('--names', nargs='+', help='one name per pair')
+    parser.add_argument('--data-root', help="replaces the test dataset's")
+    parser.add_argument('--max-images', type=int)
+    parser.add_argument('--threads', type=int, default=None)
+    parser.add_argument('--out', default='work_dirs/proposal_quality.json')
+    args = parser.parse_args(argv)
+    if len(args.pairs) % 2:
+        parser.error('give CONFIG CHECKPOINT pairs')
+    pairs = list(zip(args.pairs[::2], args.pairs[1::2]))
+    if args.names and len(args.names) != len(pairs):
+        parser.error(f'--names: {len(args.names)} names for {len(pairs)} '
+                     'models')
+    for _, ckpt in pairs:
+        if not osp.isfile(ckpt):
+            parser.error(f'checkpoint not found: {ckpt}')
+    return args, pairs
+
+
+def main(argv=None):
+    args, pairs = parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    import cbnet_mmdet  # noqa: F401  (registers the components)
+    from mmdet.apis import init_detector
+    from mmdet.registry import DATASETS
+    init_default_scope('mmdet')
+    names = args.names or [osp.splitext(osp.basename(c))[0]
+                           for c, _ in pairs]
+    results = {}
+    for name, (config, ckpt) in zip(names, pairs):
+        cfg = Config.fromfile(config)
+        dataset_cfg = cfg.test_dataloader.dataset
+        if args.data_root:
+            dataset_cfg.data_root = args.data_root
+        model = init_detector(cfg, ckpt, device='cpu')
+        results[name] = proposal_quality(model, DATASETS.build(dataset_cfg),
+                                         args.max_images)
+        print(f'{name}: {results[name]}', flush=True)
+    os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
+    with open(args.out, 'w') as f:
+        json.dump(dict(models=dict(zip(names, pairs)), results=results), f,
+                  indent=1)
+    print(to_markdown(results))
+    return results
+
+
+if __name__ == '__main__':
+    main()
