@@ -75,9 +75,30 @@ def test_demo_model_run(tmp_path, cityscapes_like_root):
     assert 0 <= r['recall']['0.9'] <= r['recall']['0.5'] <= 1
 
 
+def test_runs_are_read_from_training_folders(tmp_path):
+    tool = load_tool('analysis_tools/proposal_quality.py')
+    run = tmp_path / 'run'
+    run.mkdir()
+    (run / 'model.py').write_text('x = 1\n')
+    ckpt = run / 'iter_600.pth'
+    ckpt.write_bytes(b'')
+    (run / 'last_checkpoint').write_text('/elsewhere/iter_600.pth')
+    pairs = tool.models_of(tool.parse_args(['--runs', str(run)]))
+    assert pairs == [(str(run / 'model.py'), str(ckpt))]
+    (run / 'other.py').write_text('x = 2\n')
+    with pytest.raises(SystemExit, match='one config'):
+        tool.models_of(tool.parse_args(['--runs', str(run)]))
+
+
 def test_bad_arguments(tmp_path):
     tool = load_tool('analysis_tools/proposal_quality.py')
     with pytest.raises(SystemExit):
-        tool.main([DEMO])  # no checkpoint
+        tool.main([])
     with pytest.raises(SystemExit):
+        tool.main([DEMO])  # no checkpoint
+    with pytest.raises(SystemExit, match='checkpoint not found'):
         tool.main([DEMO, str(tmp_path / 'missing.pth')])
+    ckpt = tmp_path / 'c.pth'
+    ckpt.write_bytes(b'')
+    with pytest.raises(SystemExit, match='2 names for 1 models'):
+        tool.main([DEMO, str(ckpt), '--names', 'a', 'b'])

@@ -13,12 +13,16 @@ against the ground-truth boxes scaled the same way:
 Usage::
 
     python tools/analysis_tools/proposal_quality.py \\
-        CONFIG CHECKPOINT [CONFIG CHECKPOINT ...] [--names A B ...] \\
+        [CONFIG CHECKPOINT ...] [--runs WORK_DIR ...] [--names A B ...] \\
         [--data-root DIR] [--max-images N] [--out work_dirs/proposals.json]
+
+``--runs`` takes training folders (a comparison harness run, a ``tools/
+train.py`` work dir): the one config in it and its last checkpoint.
 
 Prints a markdown table and writes the figures as JSON.
 """
 import argparse
+import glob
 import json
 import os
 import os.path as osp
@@ -27,6 +31,8 @@ import torch
 from mmengine.config import Config
 from mmengine.dataset import pseudo_collate
 from mmengine.registry import init_default_scope
+
+from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
 
 RECALL_IOUS = (0.5, 0.7, 0.9)
 POSITIVE_IOUS = (0.5, 0.6, 0.7)
@@ -92,8 +98,11 @@ def to_markdown(results: dict) -> str:
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('pairs', nargs='+', metavar='CONFIG CHECKPOINT')
-    parser.add_argument('--names', nargs='+', help='one name per pair')
+    parser.add_argument('pairs', nargs='*', metavar='CONFIG CHECKPOINT')
+    parser.add_argument('--runs', nargs='+', default=[],
+                        help='training folders: their config and last '
+                        'checkpoint')
+    parser.add_argument('--names', nargs='+', help='one name per model')
     parser.add_argument('--data-root', help="replaces the test dataset's")
     parser.add_argument('--max-images', type=int)
     parser.add_argument('--threads', type=int, default=None)
@@ -101,18 +110,37 @@ def parse_args(argv=None):
     args = parser.parse_args(argv)
     if len(args.pairs) % 2:
         parser.error('give CONFIG CHECKPOINT pairs')
+    if not args.pairs and not args.runs:
+        parser.error('nothing to measure: give CONFIG CHECKPOINT pairs or '
+                     '--runs')
+    return args
+
+
+def models_of(args) -> list:
+    """(config, checkpoint) of each model asked for; SystemExit with the
+    reason when a file is missing."""
     pairs = list(zip(args.pairs[::2], args.pairs[1::2]))
-    if args.names and len(args.names) != len(pairs):
-        parser.error(f'--names: {len(args.names)} names for {len(pairs)} '
-                     'models')
+    for run in args.runs:
+        configs = glob.glob(osp.join(run, '*.py'))
+        ckpt, _ = last_checkpoint_in(run)
+        if len(configs) != 1 or ckpt is None:
+            raise SystemExit(
+                f'--runs {run}: needs one config (*.py) and a '
+                f'last_checkpoint; found {len(configs)} configs, checkpoint '
+                f'{ckpt}')
+        pairs.append((configs[0], ckpt))
     for _, ckpt in pairs:
         if not osp.isfile(ckpt):
-            parser.error(f'checkpoint not found: {ckpt}')
-    return args, pairs
+            raise SystemExit(f'checkpoint not found: {ckpt}')
+    if args.names and len(args.names) != len(pairs):
+        raise SystemExit(f'--names: {len(args.names)} names for '
+                         f'{len(pairs)} models')
+    return pairs
 
 
 def main(argv=None):
-    args, pairs = parse_args(argv)
+    args = parse_args(argv)
+    pairs = models_of(args)
     if args.threads:
         torch.set_num_threads(args.threads)
     import cbnet_mmdet  # noqa: F401  (registers the components)
