@@ -83,8 +83,10 @@ def test_runs_are_read_from_training_folders(tmp_path):
     ckpt = run / 'iter_600.pth'
     ckpt.write_bytes(b'')
     (run / 'last_checkpoint').write_text('/elsewhere/iter_600.pth')
-    pairs = tool.models_of(tool.parse_args(['--runs', str(run)]))
+    args = tool.parse_args(['--runs', str(run)])
+    pairs = tool.models_of(args)
     assert pairs == [(str(run / 'model.py'), str(ckpt))]
+    assert tool.default_names(args, pairs) == [f'{tmp_path.name}/run']
     (run / 'other.py').write_text('x = 2\n')
     with pytest.raises(SystemExit, match='one config'):
         tool.models_of(tool.parse_args(['--runs', str(run)]))
@@ -102,3 +104,5 @@ def test_bad_arguments(tmp_path):
     ckpt.write_bytes(b'')
     with pytest.raises(SystemExit, match='2 names for 1 models'):
         tool.main([DEMO, str(ckpt), '--names', 'a', 'b'])
+    with pytest.raises(SystemExit, match='share a name'):
+        tool.main([DEMO, str(ckpt), DEMO, str(ckpt)])

@@ -138,6 +138,15 @@ def models_of(args) -> list:
     return pairs
 
 
+def default_names(args, pairs) -> list:
+    """A config's name for a pair, ``parent/folder`` for a run (seeds of
+    one config differ by folder)."""
+    runs = [osp.join(*osp.normpath(r).split(osp.sep)[-2:])
+            for r in args.runs]
+    return [osp.splitext(osp.basename(c))[0]
+            for c, _ in pairs[:len(pairs) - len(runs)]] + runs
+
+
 def main(argv=None):
     args = parse_args(argv)
     pairs = models_of(args)
@@ -147,8 +156,9 @@ def main(argv=None):
     from mmdet.apis import init_detector
     from mmdet.registry import DATASETS
     init_default_scope('mmdet')
-    names = args.names or [osp.splitext(osp.basename(c))[0]
-                           for c, _ in pairs]
+    names = args.names or default_names(args, pairs)
+    if len(set(names)) != len(names):
+        raise SystemExit(f'two models share a name in {names}: give --names')
     results = {}
     for name, (config, ckpt) in zip(names, pairs):
         cfg = Config.fromfile(config)
