@@ -1,4 +1,6 @@
-"""Forward time and peak memory of ``CBNetMiT``: ``ope`` vs ``cspe``.
+"""Forward time and peak memory of ``CBNetMiT``: ``ope`` vs ``cspe``
+(and, with ``--query-chunk N``, ``cspe`` attending N query tokens at a
+time: ``attn_query_chunk=N``, the same weights and result).
 
 One subprocess per arch builds both models (the ``cspe`` one loads the
 ``ope`` weights; its CSPE tables are then randomised so the term is not
@@ -15,7 +17,8 @@ Usage::
 
     python tools/analysis_tools/benchmark_backbone.py
         [--archs b0 b2 b5] [--size 512 1024] [--runs 3]
-        [--threads N] [--out work_dirs/benchmark_backbone.json]
+        [--query-chunk N] [--threads N]
+        [--out work_dirs/benchmark_backbone.json]
 
 Prints a markdown table (times in seconds, memory in MiB, ratio cspe/ope:
 of the median times, and the median of the per-round ratios) and writes
@@ -43,6 +46,8 @@ def parse_args(argv=None):
                         help='timed forwards (after one warm-up)')
     parser.add_argument('--threads', type=int, default=None,
                         help='torch intra-op threads (default: torch)')
+    parser.add_argument('--query-chunk', type=int, default=None,
+                        help='also measure cspe with attn_query_chunk=N')
     parser.add_argument('--out', default='work_dirs/benchmark_backbone.json')
     parser.add_argument('--worker', help=argparse.SUPPRESS)
     return parser.parse_args(argv)
@@ -71,6 +76,12 @@ def worker(args):
     for name, p in models.get('cspe', torch.nn.Module()).named_parameters():
         if name.endswith('cspe.table'):
             torch.nn.init.normal_(p, std=0.02)
+    if args.query_chunk and 'cspe' in models:
+        chunked = MODELS.build(
+            dict(type='CBNetMiT', arch=args.worker, pos_encoding='cspe',
+                 attn_query_chunk=args.query_chunk, init_cfg=None))
+        chunked.load_state_dict(models['cspe'].state_dict())
+        models[f'cspe, chunk {args.query_chunk}'] = chunked.eval()
     x = torch.randn(1, 3, *args.size)
     stats = {pos: dict(times_s=[], peak_forward_mib=[]) for pos in models}
     set_malloc_thresholds()  # the same allocator for every timed forward
@@ -114,9 +125,13 @@ def main(argv=None):
         ]
         if args.threads:
             cmd += ['--threads', str(args.threads)]
+        variants = len(args.pos)
+        if args.query_chunk and 'cspe' in args.pos:
+            cmd += ['--query-chunk', str(args.query_chunk)]
+            variants += 1
         out = subprocess.run(
             cmd, check=True, capture_output=True, text=True).stdout
-        for line in out.strip().splitlines()[-len(args.pos):]:
+        for line in out.strip().splitlines()[-variants:]:
             results.append(json.loads(line))
             print(f'done {arch} {results[-1]["pos"]}: '
                   f'{results[-1]["time_s"]:.3f} s', file=sys.stderr)

@@ -149,8 +149,12 @@ class ContextualPositionEncoding(BaseModule):
         return piecewise_bucket(off, self.alpha, self.beta,
                                 self.gamma) + self.beta
 
-    def forward(self, q: Tensor, q_shape: Tuple[int, int],
-                k_shape: Tuple[int, int], sr_ratio: int) -> Tensor:
+    def forward(self,
+                q: Tensor,
+                q_shape: Tuple[int, int],
+                k_shape: Tuple[int, int],
+                sr_ratio: int,
+                row_start: int = 0) -> Tensor:
         """Compute ``q_i . r_ij / sqrt(d)`` for every query/key pair.
 
         Args:
@@ -158,6 +162,9 @@ class ContextualPositionEncoding(BaseModule):
             q_shape (tuple[int, int]): Query grid ``(Hq, Wq)``.
             k_shape (tuple[int, int]): Reduced key grid ``(Hk, Wk)``.
             sr_ratio (int): Spatial-reduction ratio of the keys.
+            row_start (int): Row of the whole query grid that ``q``'s first
+                row is (``q`` a band of rows of it: the attention's query
+                chunks). Defaults to 0.
 
         Returns:
             Tensor[B, heads, Hq*Wq, Hk*Wk]: Term added to the logits.
@@ -169,7 +176,8 @@ class ContextualPositionEncoding(BaseModule):
         qr = torch.matmul(q * self.head_dims**-0.5,
                           self.table.transpose(-1, -2))
         qr = qr.view(batch, self.num_heads, hq, wq, nb, nb)
-        by = self.bucket_index(hq, hk, sr_ratio, q.device)
+        by = self.bucket_index(row_start + hq, hk, sr_ratio,
+                               q.device)[row_start:]
         bx = self.bucket_index(wq, wk, sr_ratio, q.device)
         if self.num_heads > 1:
             # one gather over the flattened 2-D bucket with an [N, M]

@@ -1,6 +1,6 @@
 """CBNet's Mix Vision Transformer (MiT) backbone, paper section II.A."""
 import math
-from typing import Dict, List, Sequence, Tuple, Union
+from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import torch
 import torch.nn as nn
@@ -75,6 +75,13 @@ class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
             ``stride`` pixels) keeps its own bucket up to 3 tokens, shares
             log-spaced buckets up to 32 tokens, and the outermost bucket
             beyond; 15 x 15 buckets per head, any input size.
+        attn_query_chunk (int, optional): With CSPE, every attention
+            attends at most this many query tokens at a time (whole rows),
+            so the CSPE term and the logits are held for one band of
+            queries instead of all of them (stage 1 at 1024x2048: 1 GiB a
+            head and image in full); the same result. ``None`` (default,
+            the paper's formula computed at once) attends all queries
+            together.
         frozen_stages (int): The first ``frozen_stages`` stages (patch
             embedding, blocks and norm) are frozen and kept in eval mode;
             -1 or 0 freezes nothing. Defaults to -1.
@@ -119,6 +126,7 @@ class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
                  norm_cfg: ConfigType = dict(type='LN', eps=1e-6),
                  pos_encoding: str = 'cspe',
                  cspe_cfg: OptConfigType = None,
+                 attn_query_chunk: Optional[int] = None,
                  frozen_stages: int = -1,
                  norm_eval: bool = False,
                  init_cfg: OptMultiConfig = None) -> None:
@@ -179,7 +187,9 @@ class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
                     qkv_bias=qkv_bias,
                     act_cfg=act_cfg,
                     norm_cfg=norm_cfg,
-                    cspe_cfg=cspe_cfg) for j in range(arch['depths'][i])
+                    cspe_cfg=cspe_cfg,
+                    query_chunk=attn_query_chunk)
+                for j in range(arch['depths'][i])
             ])
             norm = build_norm_layer(norm_cfg, dims)[1]
             self.layers.append(ModuleList([patch_embed, blocks, norm]))

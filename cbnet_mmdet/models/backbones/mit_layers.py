@@ -8,6 +8,7 @@ token layout (:class:`TokenMixFFN`).
 """
 from typing import Optional, Tuple
 
+import torch
 import torch.nn.functional as F
 from mmcv.cnn import build_norm_layer
 from mmdet.models.backbones.pvt import MixFFN, SpatialReductionAttention
@@ -38,6 +39,12 @@ class CSPESpatialReductionAttention(SpatialReductionAttention):
         sr_ratio (int): Spatial-reduction ratio of keys/values.
         cspe_cfg (dict, optional): ``alpha``/``beta``/``gamma`` of
             :class:`ContextualPositionEncoding`; ``None`` disables CSPE.
+        query_chunk (int, optional): With CSPE, attend at most this many
+            query tokens at a time (whole rows of the grid, at least one),
+            so that the CSPE term and the logits exist for one band of
+            queries at a time instead of all ``H*W x h*w`` pairs (1 GiB a
+            head for stage 1 at 1024x2048). The same result; ``None``
+            (default) attends all queries at once.
         **kwargs: Remaining arguments of ``SpatialReductionAttention``.
     """
 
@@ -46,9 +53,15 @@ class CSPESpatialReductionAttention(SpatialReductionAttention):
                  num_heads: int,
                  sr_ratio: int = 1,
                  cspe_cfg: OptConfigType = None,
+                 query_chunk: Optional[int] = None,
                  **kwargs) -> None:
         super().__init__(
             embed_dims, num_heads, sr_ratio=sr_ratio, **kwargs)
+        if query_chunk is not None and (int(query_chunk) != query_chunk
+                                        or query_chunk < 1):
+            raise ValueError('query_chunk must be a positive integer or '
+                             f'None, got {query_chunk!r}')
+        self.query_chunk = query_chunk
         self.cspe = None
         if cspe_cfg is not None:
             self.cspe = ContextualPositionEncoding(
@@ -94,10 +107,18 @@ class CSPESpatialReductionAttention(SpatialReductionAttention):
         # [B, N, C] -> [B, heads, N, d]
         q = q.view(batch, num_q, heads, -1).transpose(1, 2)
         k, v = kv.view(batch, num_k, 2, heads, -1).permute(2, 0, 3, 1, 4)
-        pos = self.cspe(q, hw_shape, kv_shape, self.sr_ratio)
-        out = F.scaled_dot_product_attention(
-            q, k, v, attn_mask=pos,
-            dropout_p=mha.dropout if self.training else 0.)
+        height, width = hw_shape
+        rows = height if self.query_chunk is None else max(
+            1, self.query_chunk // width)
+        dropout = mha.dropout if self.training else 0.
+        out = []
+        for top in range(0, height, rows):  # one band of query rows
+            band = q[:, :, top * width:min(top + rows, height) * width]
+            pos = self.cspe(band, (band.shape[2] // width, width), kv_shape,
+                            self.sr_ratio, row_start=top)
+            out.append(F.scaled_dot_product_attention(
+                band, k, v, attn_mask=pos, dropout_p=dropout))
+        out = out[0] if len(out) == 1 else torch.cat(out, 2)
         out = out.transpose(1, 2).reshape(batch, num_q, channels)
         out = mha.out_proj(out)
         return identity + self.dropout_layer(self.proj_drop(out))
@@ -159,6 +180,8 @@ class MiTEncoderLayer(BaseModule):
         act_cfg (dict): FFN activation (e.g. ``dict(type='CBNetMish')``).
         norm_cfg (dict): Token normalisation layer.
         cspe_cfg (dict, optional): CSPE settings; ``None`` disables it.
+        query_chunk (int, optional): See
+            :class:`CSPESpatialReductionAttention`.
         init_cfg (dict or list[dict], optional): Initialization config.
     """
 
@@ -174,6 +197,7 @@ class MiTEncoderLayer(BaseModule):
                  act_cfg: ConfigType = dict(type='CBNetMish'),
                  norm_cfg: ConfigType = dict(type='LN', eps=1e-6),
                  cspe_cfg: OptConfigType = None,
+                 query_chunk: Optional[int] = None,
                  init_cfg: OptMultiConfig = None) -> None:
         super().__init__(init_cfg=init_cfg)
         drop_path = dict(type='DropPath', drop_prob=drop_path_rate)
@@ -187,7 +211,8 @@ class MiTEncoderLayer(BaseModule):
             qkv_bias=qkv_bias,
             norm_cfg=norm_cfg,
             sr_ratio=sr_ratio,
-            cspe_cfg=cspe_cfg)
+            cspe_cfg=cspe_cfg,
+            query_chunk=query_chunk)
         self.norm2 = build_norm_layer(norm_cfg, embed_dims)[1]
         self.ffn = TokenMixFFN(
             embed_dims=embed_dims,

@@ -246,3 +246,20 @@ def test_golden_cspe_forward():
     corners = [o[0, 0, 0, 0].item() for o in outs]
     assert corners == pytest.approx(
         [0.717755, -1.651206, -0.370387, -1.270246], abs=1e-4)
+
+
+def test_attn_query_chunk_reaches_every_attention_and_changes_nothing():
+    torch.manual_seed(0)
+    full = CBNetMiT(arch='b0').eval()
+    for blk in full.modules():
+        if hasattr(blk, 'cspe') and blk.cspe is not None:
+            nn.init.normal_(blk.cspe.table, std=0.5)
+    chunked = CBNetMiT(arch='b0', attn_query_chunk=40).eval()
+    chunked.load_state_dict(full.state_dict())
+    chunks = {m.query_chunk for m in chunked.modules()
+              if hasattr(m, 'query_chunk')}
+    assert chunks == {40}
+    x = torch.randn(1, 3, 96, 160)  # stage 1: 24x40 tokens, 1 row a band
+    with torch.no_grad():
+        for a, b in zip(full(x), chunked(x)):
+            torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5)
