@@ -28,30 +28,10 @@ def reference(attn, x, hw_shape):
     return x + attn.proj_drop(out)
 
 
-@pytest.mark.parametrize('heads, sr, hw', [(1, 8, (9, 13)), (2, 4, (8, 8)),
-                                           (4, 2, (5, 7)), (2, 1, (3, 4))])
-def test_matches_multihead_attention_with_float_mask(heads, sr, hw):
-    torch.manual_seed(0)
-    attn = CSPESpatialReductionAttention(
-        16, heads, sr_ratio=sr, cspe_cfg=dict(beta=4, gamma=16))
-    nn.init.normal_(attn.cspe.table, std=0.5)
-    nn.init.normal_(attn.attn.in_proj_bias, std=0.1)
-    x = torch.randn(2, hw[0] * hw[1], 16, requires_grad=True)
-    out = attn(x, hw)
-    ref = reference(attn, x, hw)
-    torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-5)
-    # same gradients for the input and every parameter
-    g = torch.randn_like(out)
-    grads = torch.autograd.grad((out * g).sum(),
-                                [x, *attn.parameters()])
-    grads_ref = torch.autograd.grad((ref * g).sum(),
-                                    [x, *attn.parameters()],
-                                    allow_unused=True)
-    for a, b in zip(grads, grads_ref):
-        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
-
-
 @pytest.mark.parametrize('heads, sr, hw, chunk', [
+    (1, 8, (9, 13), None), (2, 4, (8, 8), None), (4, 2, (5, 7), None),
+    (2, 1, (3, 4), None),
+    # bands of query rows (query_chunk), each with its own rows' CSPE term
     (1, 8, (9, 13), 13),   # one row a band
     (2, 4, (8, 8), 20),    # 2 rows a band
     (4, 2, (5, 7), 15),    # 2 rows, the last band 1 row
@@ -59,9 +39,9 @@ def test_matches_multihead_attention_with_float_mask(heads, sr, hw):
     (1, 2, (6, 5), 3),     # fewer tokens than a row: still one row
     (2, 4, (8, 8), 1000),  # more than the grid: one band
 ])
-def test_query_chunks_give_the_same_attention(heads, sr, hw, chunk):
-    """Bands of query rows, each with its own rows' CSPE term, against
-    the reference with all queries at once (values and gradients)."""
+def test_matches_multihead_attention_with_float_mask(heads, sr, hw, chunk):
+    """Against nn.MultiheadAttention with the whole CSPE term (all queries
+    at once): values, and gradients of the input and every parameter."""
     torch.manual_seed(0)
     attn = CSPESpatialReductionAttention(
         16, heads, sr_ratio=sr, cspe_cfg=dict(beta=4, gamma=16),
