@@ -442,15 +442,21 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
                              by_epoch=False)
     cfg.randomness = dict(seed=seed)
     cfg.work_dir = work_dir
-    # resume from the file found, not from the path MMEngine recorded
-    # (which names the original folder of a moved work dir)
-    cfg.load_from = resume_file(work_dir)
-    cfg.resume = cfg.load_from is not None
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
     if budget.img_scale is not None:
         set_img_scale(cfg, budget.img_scale)
     if cfg_options:
         cfg.merge_from_dict(cfg_options)
+    # a killed run resumes from the file found in its work dir, not from
+    # the path MMEngine recorded (which names the original folder of a
+    # moved work dir); a run that starts keeps the recipe's own load_from
+    # (weights to fine-tune from, MMEngine's meaning), if any
+    resume = resume_file(work_dir)
+    cfg.resume = resume is not None
+    if resume is not None:
+        cfg.load_from = resume
+    else:
+        cfg.load_from = cfg.get('load_from')
     return cfg
 
 

@@ -1,6 +1,7 @@
 """The comparison harness (cbnet_mmdet/evaluation/recipe_comparison.py)."""
 import glob
 import json
+import os
 import os.path as osp
 
 import numpy as np
@@ -444,6 +445,36 @@ def test_a_moved_run_resumes_from_its_own_folder(tmp_path):
     (moved / 'iter_200.pth').write_bytes(b'')
     assert rc.resume_file(str(moved)) == str(moved / 'iter_200.pth')
     assert rc.resume_iter(str(moved)) == 200
+
+
+def test_a_recipes_own_load_from_is_kept_until_the_run_resumes(tmp_path):
+    """A recipe that fine-tunes (``load_from`` in its config or in
+    ``--cfg-options``) starts from those weights; before, the harness set
+    ``load_from`` to None for every run that did not resume, so such a
+    recipe silently trained from scratch. A killed run resumes from its
+    own checkpoint, not from the fine-tuning weights."""
+    crpn = osp.join(ROOT, 'configs', 'demo', 'rpn',
+                    'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+    budget = rc.Budget(iters=6, batch_size=2, warmup_iters=2, num_workers=0)
+    run_dir = str(tmp_path / 'run')
+    init = str(tmp_path / 'pretrained.pth')
+    cfg = rc.budget_cfg(crpn, budget, 0, 'data', run_dir,
+                        cfg_options={'load_from': init})
+    assert cfg.load_from == init and cfg.resume is False
+    recipe = tmp_path / 'finetune.py'
+    recipe.write_text(f"_base_ = ['{crpn}']\nload_from = '{init}'\n")
+    cfg = rc.budget_cfg(str(recipe), budget, 0, 'data', run_dir)
+    assert cfg.load_from == init and cfg.resume is False
+    assert rc.budget_cfg(crpn, budget, 0, 'data', run_dir).load_from is None
+    # killed at iteration 3: resumes from its own checkpoint
+    os.makedirs(run_dir)
+    (tmp_path / 'run' / 'iter_3.pth').write_bytes(b'')
+    (tmp_path / 'run' / 'last_checkpoint').write_text(
+        osp.join(run_dir, 'iter_3.pth'))
+    cfg = rc.budget_cfg(str(recipe), budget, 0, 'data', run_dir,
+                        cfg_options={'load_from': init})
+    assert cfg.load_from == osp.join(run_dir, 'iter_3.pth')
+    assert cfg.resume is True
 
 
 def test_a_killed_run_resumes_from_its_last_checkpoint(
