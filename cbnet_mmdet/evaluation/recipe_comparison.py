@@ -450,13 +450,17 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     # a killed run resumes from the file found in its work dir, not from
     # the path MMEngine recorded (which names the original folder of a
     # moved work dir); a run that starts keeps the recipe's own load_from
-    # (weights to fine-tune from, MMEngine's meaning), if any
+    # (weights to fine-tune from, MMEngine's meaning), if any, with
+    # '{seed}' replaced by the run's seed (each seed fine-tunes the weights
+    # of the same seed of an earlier comparison)
     resume = resume_file(work_dir)
     cfg.resume = resume is not None
     if resume is not None:
         cfg.load_from = resume
     else:
-        cfg.load_from = cfg.get('load_from')
+        load_from = cfg.get('load_from')
+        cfg.load_from = None if load_from is None else str(
+            load_from).replace('{seed}', str(seed))
     return cfg
 
 

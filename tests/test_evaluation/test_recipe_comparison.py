@@ -466,6 +466,10 @@ def test_a_recipes_own_load_from_is_kept_until_the_run_resumes(tmp_path):
     cfg = rc.budget_cfg(str(recipe), budget, 0, 'data', run_dir)
     assert cfg.load_from == init and cfg.resume is False
     assert rc.budget_cfg(crpn, budget, 0, 'data', run_dir).load_from is None
+    # '{seed}': each seed fine-tunes the same seed's weights
+    cfg = rc.budget_cfg(crpn, budget, 2, 'data', run_dir, cfg_options={
+        'load_from': 'work_dirs/compare/parts/CBNet/seed{seed}/iter_6.pth'})
+    assert cfg.load_from == 'work_dirs/compare/parts/CBNet/seed2/iter_6.pth'
     # killed at iteration 3: resumes from its own checkpoint
     os.makedirs(run_dir)
     (tmp_path / 'run' / 'iter_3.pth').write_bytes(b'')
