@@ -117,8 +117,8 @@ def interleaved(cases: Dict[str, Callable], repeats: int,
                 device: str) -> Dict[str, List[float]]:
     """``repeats`` rounds, one timed call of each case per round."""
     times = {name: [] for name in cases}
-    for fn in cases.values():  # warm-up: kernels, allocator
-        time_calls(fn, 1, warmup=1, device=device)
+    for fn in cases.values():  # one untimed warm-up: kernels, allocator
+        time_calls(fn, 0, warmup=1, device=device)
     for _ in range(repeats):
         for name, fn in cases.items():
             times[name] += time_calls(fn, 1, warmup=0, device=device)
