@@ -130,6 +130,12 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          '1xb4-demo_cityscapes-like.py'),
         ('CBNet -sigmoid cls', 'demo/parts/cbnet_mit-b0_nasfpn-softmax-'
          'cls_1xb4-demo_cityscapes-like.py'),
+        # candidates for a CBNet that beats the stock cascade (section 3)
+        ('CBNet +stage masks +softmax', 'demo/parts/cbnet_mit-b0_nasfpn-'
+         'mask-per-stage-softmax-cls_1xb4-demo_cityscapes-like.py'),
+        ('CBNet +stage masks +softmax, CRPN reg 1', 'demo/parts/cbnet_mit-'
+         'b0_nasfpn-mask-per-stage-softmax-cls-crpn-reg1_1xb4-demo_'
+         'cityscapes-like.py'),
     ],
     # issue 24, real fog (DAWN, RTTS or any VOC folder as --data-root):
     # box-only recipes trained on its train split, tested on its val split;
