@@ -11,13 +11,15 @@ forward memory comes from one more, untimed forward of each, measured by
 level before it, with glibc told to ``mmap`` every allocation above 64 KiB
 so that freed tensors leave the resident set at once).
 Inference mode (``torch.no_grad``, ``eval``), batch 1, random weights,
-Mish activation, CPU.
+Mish activation, on the CPU or, with ``--device cuda``, on a GPU (each
+timed forward ends in ``torch.cuda.synchronize``; memory is
+``torch.cuda.max_memory_allocated`` above the level before the forward).
 
 Usage::
 
     python tools/analysis_tools/benchmark_backbone.py
         [--archs b0 b2 b5] [--size 512 1024] [--runs 3]
-        [--query-chunk N] [--threads N]
+        [--query-chunk N] [--threads N] [--device cpu|cuda]
         [--out work_dirs/benchmark_backbone.json]
 
 Prints a markdown table (times in seconds, memory in MiB, ratio cspe/ope:
@@ -48,6 +50,8 @@ def parse_args(argv=None):
                         help='torch intra-op threads (default: torch)')
     parser.add_argument('--query-chunk', type=int, default=None,
                         help='also measure cspe with attn_query_chunk=N')
+    parser.add_argument('--device', default='cpu',
+                        help="'cpu' or a CUDA device such as 'cuda'")
     parser.add_argument('--out', default='work_dirs/benchmark_backbone.json')
     parser.add_argument('--worker', help=argparse.SUPPRESS)
     return parser.parse_args(argv)
@@ -82,7 +86,16 @@ def worker(args):
                  attn_query_chunk=args.query_chunk, init_cfg=None))
         chunked.load_state_dict(models['cspe'].state_dict())
         models[f'cspe, chunk {args.query_chunk}'] = chunked.eval()
-    x = torch.randn(1, 3, *args.size)
+    device = torch.device(args.device)
+    if device.type == 'cuda':
+        torch.backends.cudnn.benchmark = False  # same kernels every round
+    models = {pos: model.to(device) for pos, model in models.items()}
+    x = torch.randn(1, 3, *args.size, device=device)
+
+    def sync():
+        if device.type == 'cuda':
+            torch.cuda.synchronize(device)
+
     stats = {pos: dict(times_s=[], peak_forward_mib=[]) for pos in models}
     set_malloc_thresholds()  # the same allocator for every timed forward
     with torch.no_grad():
@@ -90,11 +103,13 @@ def worker(args):
             model(x)
         for _ in range(args.runs):
             for pos, model in models.items():
+                sync()
                 start = time.perf_counter()
                 model(x)
+                sync()
                 stats[pos]['times_s'].append(time.perf_counter() - start)
         for pos, model in models.items():  # memory: one more, untimed
-            with PeakMemory('cpu') as mem:
+            with PeakMemory(str(device)) as mem:
                 model(x)
             stats[pos]['peak_forward_mib'].append(mem.peak)
     for pos, model in models.items():
@@ -108,7 +123,13 @@ def worker(args):
                     time_s=statistics.median(stats[pos]['times_s']),
                     peak_mib=max(stats[pos]['peak_forward_mib']),
                     threads=torch.get_num_threads(),
+                    device=str(device),
                     **stats[pos])))
+
+
+def torch_device_name(device):
+    import torch
+    return torch.cuda.get_device_name(torch.device(device))
 
 
 def main(argv=None):
@@ -125,6 +146,7 @@ def main(argv=None):
         ]
         if args.threads:
             cmd += ['--threads', str(args.threads)]
+        cmd += ['--device', args.device]
         variants = len(args.pos)
         if args.query_chunk and 'cspe' in args.pos:
             cmd += ['--query-chunk', str(args.query_chunk)]
@@ -144,7 +166,9 @@ def main(argv=None):
             if base else None
         r['mem_ratio'] = r['peak_mib'] / base['peak_mib'] if base else None
     h, w = args.size
-    print(f'\nCBNetMiT forward, 1x3x{h}x{w}, CPU, '
+    where = ('CPU' if args.device == 'cpu' else
+             f'{args.device}, {torch_device_name(args.device)}')
+    print(f'\nCBNetMiT forward, 1x3x{h}x{w}, {where}, '
           f'{results[0]["threads"]} threads, median of {args.runs}\n')
     print('| arch | pos | params (M) | time (s) | peak fwd mem (MiB) '
           '| time / ope | per-round time / ope | mem / ope |')
@@ -158,7 +182,8 @@ def main(argv=None):
     if args.out:
         os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
         with open(args.out, 'w') as f:
-            json.dump(dict(size=args.size, runs=args.runs, results=results),
+            json.dump(dict(size=args.size, runs=args.runs,
+                           device=where, results=results),
                       f, indent=2)
         print(f'\nwritten {args.out}')
 
