@@ -128,3 +128,35 @@ def test_the_parts_set_lists_every_swap_once():
     for config, _, _ in SWAPS:
         assert osp.normpath(osp.join(PARTS, config)) in paths
     assert STOCK in paths and CBNET in paths
+
+
+REVISED = [
+    (CBNET, osp.join(DEMO, 'cbnet-revised_mit-b0_nasfpn_1xb4-demo_'
+                     'cityscapes-like.py')),
+    (osp.join(ROOT, 'configs', 'cbnet', 'cbnet_mit-b5_nasfpn-crpn_8xb1-'
+              '12e_cityscapes.py'),
+     osp.join(ROOT, 'configs', 'cbnet', 'cbnet-revised_mit-b5_nasfpn-crpn_'
+              '8xb1-12e_cityscapes.py')),
+]
+
+
+@pytest.mark.parametrize('paper,revised', REVISED,
+                         ids=[osp.basename(r) for _, r in REVISED])
+def test_the_revised_cbnet_is_the_papers_with_three_changes(paper, revised):
+    before, after = model_of(paper), model_of(revised)
+    changed = diff(before, after)
+    # per-stage mask heads, softmax classification, CRPN regression at 1
+    assert {p for k in changed for p in owner(k)} == {
+        'mask stage', 'cls', 'rpn'}, sorted(changed)
+    assert after['roi_head.type'] == 'CascadeRoIHead'
+    for i in range(3):
+        assert after[f'roi_head.bbox_head.{i}.loss_cls.type'] == \
+            'CrossEntropyLoss'
+        assert after[f'roi_head.bbox_head.{i}.loss_cls.use_sigmoid'] is False
+    assert {k for k in changed if owner(k) == ['rpn']} == {
+        'rpn_head.loss_iou.loss_weight', 'rpn_head.loss_giou.loss_weight'}
+    assert after['rpn_head.loss_iou.loss_weight'] == \
+        after['rpn_head.loss_giou.loss_weight'] == 1.0
+    # everything else is the paper's: trunk, neck, IoUs, boundary-aware loss
+    assert after['roi_head.mask_head.loss_mask.type'] == \
+        'CBNetBoundaryAwareLoss'
