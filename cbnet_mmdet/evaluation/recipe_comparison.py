@@ -136,6 +136,11 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet +stage masks +softmax, CRPN reg 1', 'demo/parts/cbnet_mit-'
          'b0_nasfpn-mask-per-stage-softmax-cls-crpn-reg1_1xb4-demo_'
          'cityscapes-like.py'),
+        # what the Cascade RPN's regression weights at 1 do alone
+        ('stock +CRPN reg 1', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
+         'crpn-reg1_1xb4-demo_cityscapes-like.py'),
+        ('CBNet, CRPN reg 1', 'demo/parts/cbnet_mit-b0_nasfpn-crpn-reg1_'
+         '1xb4-demo_cityscapes-like.py'),
     ],
     # issue 24, real fog (DAWN, RTTS or any VOC folder as --data-root):
     # box-only recipes trained on its train split, tested on its val split;

@@ -8,8 +8,4 @@ _base_ = [
     './cbnet_mit-b0_nasfpn-mask-per-stage-softmax-cls_1xb4-demo_'
     'cityscapes-like.py',
 ]
-crpn_reg_weight = 1.0  # paper: 10 for both regression losses
-model = dict(
-    rpn_head=dict(
-        loss_iou=dict(loss_weight=crpn_reg_weight),
-        loss_giou=dict(loss_weight=crpn_reg_weight)))
+model = dict(rpn_head=_base_.crpn_reg1)  # paper: 10 (parts.py)

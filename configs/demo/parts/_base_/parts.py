@@ -125,3 +125,11 @@ stock_mask_head = dict(
 cbnet_loss_cls = dict(type='CBNetSigmoidCrossEntropyLoss', loss_weight=1.0)
 stock_loss_cls = dict(
     type='CrossEntropyLoss', use_sigmoid=False, loss_weight=1.0)
+
+# Not a part: the Cascade RPN's regression losses weighted 1 instead of the
+# paper's lambda_IoU = lambda_GIoU = 10 (eq. (3)), the change of the revised
+# CBNet (docs/accuracy.md "A CBNet that wins"), as an rpn_head delta
+crpn_reg_weight = 1.0
+crpn_reg1 = dict(
+    loss_iou=dict(loss_weight=crpn_reg_weight),
+    loss_giou=dict(loss_weight=crpn_reg_weight))
