@@ -33,7 +33,6 @@ import os.path as osp
 import statistics
 import subprocess
 import sys
-import time
 
 
 def parse_args(argv=None):
@@ -63,7 +62,8 @@ def worker(args):
     from mmdet.registry import MODELS
 
     import cbnet_mmdet  # noqa: F401
-    from cbnet_mmdet.utils.benchmark import PeakMemory, set_malloc_thresholds
+    from cbnet_mmdet.utils.benchmark import (PeakMemory, set_malloc_thresholds,
+                                             time_calls)
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -91,11 +91,6 @@ def worker(args):
         torch.backends.cudnn.benchmark = False  # same kernels every round
     models = {pos: model.to(device) for pos, model in models.items()}
     x = torch.randn(1, 3, *args.size, device=device)
-
-    def sync():
-        if device.type == 'cuda':
-            torch.cuda.synchronize(device)
-
     stats = {pos: dict(times_s=[], peak_forward_mib=[]) for pos in models}
     set_malloc_thresholds()  # the same allocator for every timed forward
     with torch.no_grad():
@@ -103,11 +98,8 @@ def worker(args):
             model(x)
         for _ in range(args.runs):
             for pos, model in models.items():
-                sync()
-                start = time.perf_counter()
-                model(x)
-                sync()
-                stats[pos]['times_s'].append(time.perf_counter() - start)
+                stats[pos]['times_s'] += time_calls(
+                    lambda: model(x), 1, warmup=0, device=str(device))
         for pos, model in models.items():  # memory: one more, untimed
             with PeakMemory(str(device)) as mem:
                 model(x)
@@ -125,11 +117,6 @@ def worker(args):
                     threads=torch.get_num_threads(),
                     device=str(device),
                     **stats[pos])))
-
-
-def torch_device_name(device):
-    import torch
-    return torch.cuda.get_device_name(torch.device(device))
 
 
 def main(argv=None):
@@ -166,8 +153,11 @@ def main(argv=None):
             if base else None
         r['mem_ratio'] = r['peak_mib'] / base['peak_mib'] if base else None
     h, w = args.size
-    where = ('CPU' if args.device == 'cpu' else
-             f'{args.device}, {torch_device_name(args.device)}')
+    if args.device == 'cpu':
+        where = 'CPU'
+    else:
+        import torch
+        where = f'{args.device}, {torch.cuda.get_device_name(args.device)}'
     print(f'\nCBNetMiT forward, 1x3x{h}x{w}, {where}, '
           f'{results[0]["threads"]} threads, median of {args.runs}\n')
     print('| arch | pos | params (M) | time (s) | peak fwd mem (MiB) '
