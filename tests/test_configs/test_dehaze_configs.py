@@ -62,9 +62,11 @@ def test_demo_variants_share_the_demo_recipe(path):
 def test_demo_variant_trains_one_step(path):
     cfg = Config.fromfile(path)
     init_default_scope('mmdet')
-    cfg.model.data_preprocessor.dehaze_checkpoint = None  # untrained
     torch.manual_seed(0)
+    # builds whether or not its dehazer checkpoint exists (it loads in
+    # init_weights)
     model = MODELS.build(cfg.model)
+    model.data_preprocessor.dehaze_checkpoint = None  # untrained
     model.init_weights()
     packed = demo_mm_inputs(2, [[3, 64, 128]] * 2, num_items=[3, 2],
                             num_classes=8, with_mask=True)

@@ -42,9 +42,13 @@ class CBNetDehazeDataPreprocessor(DetDataPreprocessor):
         dehaze (dict): Config of the dehazer (``CBNetAttentionDehazer``,
             ``CBNetDarkChannelPrior`` ...).
         dehaze_checkpoint (str, optional): Weights for the dehazer alone,
-            loaded when the preprocessor is built (see
-            :func:`load_dehazer_checkpoint`); a detector checkpoint loaded
-            later with ``load_from`` overrides them where it has them.
+            loaded by :meth:`init_weights` (see
+            :func:`load_dehazer_checkpoint`), which MMEngine's Runner calls
+            through the detector's ``init_weights`` before training; a
+            detector checkpoint loaded with ``load_from`` (or
+            ``init_detector``, which does not initialise) overrides them
+            where it has them. So the model builds without the file, as
+            MMDet's ``init_cfg=dict(type='Pretrained')`` does.
         strict_checkpoint (bool): Refuse a dehazer checkpoint that does
             not fit exactly. Defaults to True.
         train_dehazer (bool): Train the dehazer with the detector.
@@ -70,13 +74,23 @@ class CBNetDehazeDataPreprocessor(DetDataPreprocessor):
                              f"be 'bgr' or 'rgb', got {input_order!r}")
         self.input_order = input_order
         self.dehazer = MODELS.build(dehaze)
-        if dehaze_checkpoint:
-            load_dehazer_checkpoint(self.dehazer, dehaze_checkpoint,
-                                    strict=strict_checkpoint)
+        self.dehaze_checkpoint = dehaze_checkpoint
+        self.strict_checkpoint = strict_checkpoint
         self.train_dehazer = train_dehazer
         if not train_dehazer:
             self.dehazer.requires_grad_(False)
             self.dehazer.eval()
+
+    def init_weights(self) -> None:
+        """Load ``dehaze_checkpoint`` into the dehazer, if one is set.
+
+        Raises:
+            FileNotFoundError: the file does not exist.
+            RuntimeError: it does not fit the dehazer (``strict_checkpoint``).
+        """
+        if self.dehaze_checkpoint:
+            load_dehazer_checkpoint(self.dehazer, self.dehaze_checkpoint,
+                                    strict=self.strict_checkpoint)
 
     def train(self, mode: bool = True):
         """Set the training mode; a frozen dehazer stays in eval mode."""

@@ -147,17 +147,47 @@ def test_detector_output_unchanged_with_identity_dehazer(
                 atol=1e-4, rtol=1e-4)
 
 
-def test_dehazer_checkpoint_loads_on_its_own(tmp_path):
+def saved_dehazer(tmp_path):
+    """A random dehazer and its weights saved as a dehazer checkpoint."""
     src = MODELS.build(IDENTITY)
     for p in src.parameters():
         nn.init.normal_(p, std=0.1)
     path = tmp_path / 'dehazer.pth'
     torch.save(dict(state_dict={'dehazer.' + k: v for k, v in
                                 src.state_dict().items()}), path)
+    return src, path
+
+
+def test_dehazer_checkpoint_loads_on_its_own(tmp_path):
+    src, path = saved_dehazer(tmp_path)
     pre = MODELS.build(dehaze_cfg(dehaze_checkpoint=str(path)))
+    pre.init_weights()
     for k, v in src.state_dict().items():
         torch.testing.assert_close(pre.dehazer.state_dict()[k], v)
-    wrong = dehaze_cfg(dict(IDENTITY, channels=16),
-                       dehaze_checkpoint=str(path))
+    wrong = MODELS.build(dehaze_cfg(dict(IDENTITY, channels=16),
+                                    dehaze_checkpoint=str(path)))
     with pytest.raises(RuntimeError, match='mismatched'):
-        MODELS.build(wrong)
+        wrong.init_weights()
+
+
+def test_missing_dehazer_checkpoint_builds_and_fails_at_init(tmp_path):
+    """The file is needed by init_weights (training), not to build: a full
+    detector checkpoint then provides the dehazer for inference."""
+    missing = str(tmp_path / 'absent.pth')
+    pre = MODELS.build(dehaze_cfg(dehaze_checkpoint=missing))
+    with pytest.raises(FileNotFoundError, match='absent.pth'):
+        pre.init_weights()
+
+
+def test_detector_init_weights_loads_the_dehazer_checkpoint(
+        tmp_path, make_detector_cfg):
+    """MMEngine reaches the preprocessor through the detector's
+    init_weights, as the Runner calls it before training."""
+    src, path = saved_dehazer(tmp_path)
+    model = MODELS.build(dict(
+        ConfigDict(make_detector_cfg()),
+        data_preprocessor=dehaze_cfg(dehaze_checkpoint=str(path))))
+    model.init_weights()
+    for k, v in src.state_dict().items():
+        torch.testing.assert_close(
+            model.data_preprocessor.dehazer.state_dict()[k], v)
