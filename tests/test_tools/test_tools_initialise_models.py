@@ -35,14 +35,6 @@ def assert_focal_prior(rpn_head):
     torch.testing.assert_close(bias, torch.full_like(bias, PRIOR_BIAS))
 
 
-def test_benchmark_rpn_initialises_the_crpn():
-    from mmengine.registry import init_default_scope
-    init_default_scope('mmdet')  # what the tool's main() sets
-    tool = load_tool('benchmark_rpn')
-    model = tool.build_rpn('CRPN', 8)
-    assert_focal_prior(model.bbox_head)  # MMDet's RPN calls it bbox_head
-
-
 def test_fuzz_inputs_initialises_the_demo_model(cityscapes_like_root):
     tool = load_tool('fuzz_inputs')
     model, _ = tool.build(cityscapes_like_root, (64, 32))

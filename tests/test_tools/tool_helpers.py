@@ -13,7 +13,7 @@ def load_tool(relpath: str):
 
     Args:
         relpath (str): Path under ``tools/``, e.g.
-            ``'analysis_tools/benchmark_rpn.py'``.
+            ``'analysis_tools/benchmark_mask_loss.py'``.
     """
     name = 'cbnet_tools_' + relpath.replace('/', '_')[:-3]
     spec = importlib.util.spec_from_file_location(

@@ -31,9 +31,6 @@ import sys
 import time
 from contextlib import nullcontext
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
 
 #: the detector's top-level parts that get their own profiler range
 PARTS = ('backbone', 'neck', 'rpn_head', 'roi_head', 'bbox_head')
