@@ -568,7 +568,8 @@ def count_flops(model: nn.Module, data: dict) -> Dict[str, float]:
     Counts the ATen operators that run (matrix products, convolutions,
     attention), so data-dependent work (RPN, RoI heads on the proposals
     actually kept, masks of the detections actually made) is included as
-    executed. mmcv's compiled operators (deformable convolution, RoIAlign)
+    executed; PyTorch's fused CPU attention is counted as its two matrix
+    products. mmcv's compiled operators (deformable convolution, RoIAlign)
     and element-wise operators count as zero, so the figures are lower
     bounds. One multiply-add counts as one FLOP (fvcore's and MMDet's
     convention; PyTorch counts two, halved here).
@@ -581,14 +582,25 @@ def count_flops(model: nn.Module, data: dict) -> Dict[str, float]:
         dict: ``predict`` (the whole inference) and ``features`` (backbone
         and neck only, independent of the weights), GFLOPs per batch.
     """
-    from torch.utils.flop_counter import FlopCounterMode
+    from torch.utils.flop_counter import FlopCounterMode, sdpa_flop_count
+
+    def cpu_sdpa(query, key, value, *args, out_shape=None, **kwargs):
+        return sdpa_flop_count(query, key, value)
+
+    # PyTorch counts its fused CUDA attention kernels but not the fused CPU
+    # one, which MiT's attention runs on the CPU: without this its attention
+    # would count zero
+    cpu_op = getattr(torch.ops.aten,
+                     '_scaled_dot_product_flash_attention_for_cpu', None)
+    mapping = {cpu_op: cpu_sdpa} if cpu_op is not None else {}
     out = {}
     with torch.no_grad():
         for part, run in (
             ('predict', lambda: model(**data, mode='predict')),
             ('features', lambda: model.extract_feat(data['inputs'])),
         ):
-            with FlopCounterMode(display=False) as counter:
+            with FlopCounterMode(display=False,
+                                 custom_mapping=mapping) as counter:
                 run()
             out[part] = counter.get_total_flops() / 2 / 1e9
     return out

@@ -115,6 +115,28 @@ def test_count_flops_conv_reference():
     assert flops['predict'] == flops['features']
 
 
+def test_count_flops_counts_cpu_attention():
+    """MiT's attention runs PyTorch's fused CPU kernel, which
+    FlopCounterMode alone counts as zero: its two products, written out,
+    are the reference (QK^T: b*h*L*S*E, AV: b*h*L*S*Ev multiply-adds)."""
+    b, h, L, S, E = 1, 2, 256, 64, 32
+
+    class Attn(torch.nn.Module):
+
+        def extract_feat(self, q):
+            k = q[:, :, :S]
+            bias = torch.zeros(b, h, L, S)
+            return torch.nn.functional.scaled_dot_product_attention(
+                q, k, k, attn_mask=bias)
+
+        def forward(self, inputs, data_samples=None, mode='predict'):
+            return self.extract_feat(inputs)
+
+    data = dict(inputs=torch.randn(b, h, L, E), data_samples=None)
+    flops = count_flops(Attn(), data)
+    assert flops['features'] == pytest.approx(2 * b * h * L * S * E / 1e9)
+
+
 def test_bad_thread_count_is_a_clear_error():
     out = subprocess.run(
         [sys.executable, SCRIPT, '--threads', '0'],
@@ -288,21 +310,44 @@ def test_model_cfg_overrides_one_model_only(capsys):
 
 
 def test_results_are_written_after_every_phase(tmp_path):
-    """A run killed later (e.g. out of memory in a training step) keeps
-    what it measured: each phase checkpoints the results."""
+    """A run killed later (e.g. out of memory in a training step, or a time
+    limit between two inference rounds) keeps what it measured: every
+    timed inference round and each phase checkpoints the results."""
     bench_script = load_tool('analysis_tools/benchmark.py')
     args = bench_script.parse_args([
         '--models', 'yolox_s', '--size', '64', '64', '--batch-sizes', '1',
-        '--repeats', '1', '--warmup', '0', '--no-flops', '--scale-models',
+        '--repeats', '2', '--warmup', '0', '--no-flops', '--scale-models',
         'yolox_s', '--scale-sizes', '32x32', '--scale-items', '--threads',
         '1', '--out-dir', str(tmp_path)
     ])
     seen = []
-    bench_script.run(args, lambda res, sca: seen.append(
-        (sorted(res['yolox_s']), sorted(sca['sizes']))))
-    assert [s[1] for s in seen] == [[], [], ['yolox_s']]
-    assert 'inference' in seen[0][0] and 'train_step' not in seen[0][0]
-    assert 'train_step' in seen[1][0]
+
+    def checkpoint(res, sca):
+        times = res['yolox_s'].get('inference', {}).get('1', {}).get('times')
+        seen.append((sorted(res['yolox_s']), sorted(sca['sizes']),
+                     len(times or [])))
+
+    bench_script.run(args, checkpoint)
+    # inference: two rounds, the finished phase; the same for training;
+    # scaling
+    assert [s[2] for s in seen] == [1, 2, 2, 2, 2, 2, 2]
+    assert [s[1] for s in seen] == [[]] * 6 + [['yolox_s']]
+    assert all('train_step' not in s[0] for s in seen[:3])
+    assert all('train_step' in s[0] for s in seen[3:])
+
+
+def test_no_infer_measures_training_only(tmp_path):
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    bench_script.main([
+        '--models', 'yolox_s', '--size', '64', '64', '--repeats', '1',
+        '--warmup', '0', '--no-flops', '--no-infer', '--scale-models',
+        '--scale-items', '--threads', '1', '--out-dir', str(tmp_path)
+    ])
+    with open(tmp_path / 'benchmark.json') as f:
+        results = json.load(f)['results']
+    assert 'inference' not in results['yolox_s']
+    assert len(results['yolox_s']['train_step']['times']) == 1
+    assert '| yolox_s |' in (tmp_path / 'benchmark.md').read_text()
 
 
 def test_test_time_proposal_count_is_recorded(tmp_path):

@@ -60,8 +60,6 @@ from contextlib import nullcontext
 from datetime import datetime, timezone
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
 
 #: name -> config, relative to the repository root.
 MODELS = {
@@ -127,6 +125,8 @@ def parse_args(argv=None):
                    'b5_cells model.neck.fine_path=cells (repeatable; with '
                    '--models b5_cells=cbnet_mit-b5 the same config twice)')
     p.add_argument('--no-train', action='store_true')
+    p.add_argument('--no-infer', action='store_true',
+                   help='skip the inference measurements (--batch-sizes)')
     p.add_argument('--no-flops', action='store_true')
     p.add_argument('--scale-models', nargs='*',
                    default=['cbnet_mit-b0', REFERENCE])
@@ -244,20 +244,27 @@ class Bench:
 
         return call, wrapper
 
-    def measure(self, calls, repeats, warmup):
+    def measure(self, calls, repeats, warmup, on_round=None):
         """Alternate ``calls`` (name -> fn): ``repeats`` timed rounds, then
         one more call of each for its peak memory (measuring memory changes
         how the allocator works, see ``PeakMemory``, so it is never timed).
+        ``on_round(out)`` after every timed round: a run cut short (a time
+        limit) keeps the rounds it finished.
         """
         B = self.B
         out = {n: dict(times=[], peak_mib=[]) for n in calls}
         for _ in range(warmup):
             for fn in calls.values():
                 fn()
-        for _ in range(repeats):
+        for i in range(repeats):
             for name, fn in calls.items():
                 out[name]['times'].append(
                     B.time_calls(fn, 1, 0, self.device)[0])
+            print(f'round {i + 1}/{repeats}: ' + ', '.join(
+                f'{n} {v["times"][-1]:.3f} s' for n, v in out.items()),
+                  file=sys.stderr)
+            if on_round is not None:
+                on_round(out)
         for name, fn in calls.items():
             with B.PeakMemory(self.device) as mem:
                 fn()
@@ -292,18 +299,21 @@ def run(args, checkpoint=lambda results, scaling: None):
             results[n]['gflops'] = B.count_flops(
                 model, B.preprocess(model, raw, False))
         print(f'counted {n}', file=sys.stderr)
-    for bs in args.batch_sizes:
+    for bs in [] if args.no_infer else args.batch_sizes:
         calls = {n: bench.predict_call(n, bench.batch(n, size, bs))
                  for n in names}
-        meas = bench.measure(calls, args.repeats, args.warmup)
-        for n in names:
-            s = B.summarize(meas[n]['times'])
-            results[n].setdefault('inference', {})[str(bs)] = dict(
-                seconds=s, images_per_s=bs / s['median'],
-                peak_mib=_peak(meas[n]['peak_mib']),
-                times=meas[n]['times'])
+
+        def keep(meas, bs=bs):
+            for n in names:
+                s = B.summarize(meas[n]['times'])
+                results[n].setdefault('inference', {})[str(bs)] = dict(
+                    seconds=s, images_per_s=bs / s['median'],
+                    peak_mib=_peak(meas[n]['peak_mib']),
+                    times=meas[n]['times'])
+            checkpoint(results, dict(sizes={}, items={}))
+
+        keep(bench.measure(calls, args.repeats, args.warmup, on_round=keep))
         print(f'inference batch {bs} done', file=sys.stderr)
-        checkpoint(results, dict(sizes={}, items={}))
     if not args.no_train:
         # the timed training steps move the weights (lr 1e-8, but a random
         # model's proposal scores are near ties); the scaling study measures
@@ -314,18 +324,22 @@ def run(args, checkpoint=lambda results, scaling: None):
         for n in names:
             calls[n], wrappers[n] = bench.train_call(
                 n, bench.batch(n, size, args.train_batch_size))
-        meas = bench.measure(calls, args.repeats, args.warmup)
-        for n in names:
-            results[n]['train_step'] = dict(
-                seconds=B.summarize(meas[n]['times']),
-                peak_mib=_peak(meas[n]['peak_mib']),
-                times=meas[n]['times'])
+
+        def keep_train(meas):
+            for n in names:
+                results[n]['train_step'] = dict(
+                    seconds=B.summarize(meas[n]['times']),
+                    peak_mib=_peak(meas[n]['peak_mib']),
+                    times=meas[n]['times'])
+            checkpoint(results, dict(sizes={}, items={}))
+
+        keep_train(bench.measure(calls, args.repeats, args.warmup,
+                                 on_round=keep_train))
         del wrappers
         for n, state in initial.items():
             bench.models[n].load_state_dict(state)
         del initial
         print('training done', file=sys.stderr)
-        checkpoint(results, dict(sizes={}, items={}))
     scaling = dict(sizes={}, items={})
     for hw in args.scale_sizes:
         calls = {n: bench.predict_call(n, bench.batch(n, hw))
@@ -368,6 +382,8 @@ def machine(args):
     import mmcv
     import mmdet
     import torch
+
+    import cbnet_mmdet
     info = dict(
         platform=platform.platform(),
         processor=platform.processor() or platform.machine(),
@@ -376,7 +392,10 @@ def machine(args):
         omp_num_threads=os.environ.get('OMP_NUM_THREADS'),
         python=platform.python_version(),
         torch=torch.__version__, mmcv=mmcv.__version__,
-        mmdet=mmdet.__version__, amp=args.amp)
+        mmdet=mmdet.__version__, amp=args.amp,
+        # which copy was measured: the installed one, or a checkout's on
+        # PYTHONPATH (to compare two checkouts)
+        cbnet_mmdet=osp.dirname(cbnet_mmdet.__file__))
     if args.device.startswith('cuda'):
         info['device'] = torch.cuda.get_device_name(args.device)
     else:
@@ -426,7 +445,8 @@ def markdown(meta, results, scaling):
         f'- load average (1 / 5 / 15 min): start {load("load_start")}, '
         f'end {load("load_end")}',
         f'- software: Python {mach["python"]}, torch {mach["torch"]}, mmcv '
-        f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}',
+        f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}; '
+        f'cbnet_mmdet from {mach.get("cbnet_mmdet", "-")}',
         f'- peak memory: {meta.get("peak_memory", "-")}',
     ] + [
         f'- {name}: ' + ', '.join(f'`{k}={v}`' for k, v in opts.items())
@@ -451,7 +471,8 @@ def markdown(meta, results, scaling):
         if ref is None:
             return None
         get = {
-            'lat': lambda x: x['inference']['1']['seconds']['median'],
+            'lat': lambda x: x.get('inference', {}).get('1', {}).get(
+                'seconds', {}).get('median'),
             'train': lambda x: x.get('train_step', {}).get(
                 'seconds', {}).get('median'),
             'params': lambda x: x['params_m'],
@@ -460,17 +481,18 @@ def markdown(meta, results, scaling):
         return a / b if a is not None and b else None
 
     for name, r in results.items():
-        inf = r['inference']
-        lat = inf.get('1', next(iter(inf.values())))['seconds']
+        # a --no-infer run, or one stopped before its first timed round
+        inf = r.get('inference', {})
+        lat = inf.get('1', next(iter(inf.values()), {})).get('seconds', {})
         fl = r.get('gflops', {})
         tr = r.get('train_step', {})
         lines.append(
             f'| {name} | {r["params_m"]:.1f} | '
             f'{_f(fl.get("predict"), "{:.1f}")} / '
             f'{_f(fl.get("features"), "{:.1f}")} | '
-            f'{lat["median"]:.3f} [{lat["iqr"]:.3f}] | ' + ' | '.join(
-                f'{inf[str(b)]["images_per_s"]:.2f}'
-                for b in meta['batch_sizes']) +
+            f'{_f(lat.get("median"))} [{_f(lat.get("iqr"))}] | ' +
+            ' | '.join(_f(inf.get(str(b), {}).get('images_per_s'), '{:.2f}')
+                       for b in meta['batch_sizes']) +
             f' | {_f(tr.get("seconds", {}).get("median"))} | '
             f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
             f'{_f(tr.get("peak_mib"), "{:.0f}")} | '
