@@ -14,7 +14,7 @@ import pytest
 import torch
 from mmengine.config import Config
 
-from cbnet_mmdet.utils.benchmark import (build_detector, has_mask_head,
+from cbnet_lab.benchmark import (build_detector, has_mask_head,
                                          head_num_classes,
                                          load_benchmark_cfg, make_batch,
                                          preprocess, train_step)

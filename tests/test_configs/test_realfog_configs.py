@@ -6,7 +6,7 @@ import os.path as osp
 import pytest
 from mmengine.config import Config
 
-from cbnet_mmdet.evaluation import recipe_comparison as rc
+from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')

@@ -12,8 +12,8 @@ import torch
 
 from tool_helpers import load_tool
 
-import cbnet_mmdet.utils.benchmark as benchmark_utils
-from cbnet_mmdet.utils.benchmark import (PeakMemory, count_flops,
+import cbnet_lab.benchmark as benchmark_utils
+from cbnet_lab.benchmark import (PeakMemory, count_flops,
                                          strip_pretrained, summarize)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -213,7 +213,7 @@ def test_benchmark_backbone_smoke(tmp_path):
 def test_build_detector_is_seeded():
     """Every run measures the same random model (proposals, and so the RoI
     heads' cost, depend on the weights)."""
-    from cbnet_mmdet.utils.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
     cfg = load_benchmark_cfg(
         osp.join(ROOT, 'configs', 'baselines',
                  'yolox_s_8xb8-300e_cityscapes.py'))
@@ -226,7 +226,7 @@ def test_build_detector_is_seeded():
 
 
 def test_realistic_proposals_distribution():
-    from cbnet_mmdet.utils.benchmark import realistic_proposals
+    from cbnet_lab.benchmark import realistic_proposals
     boxes = realistic_proposals((512, 1024), num=4000)
     assert boxes.shape == (4000, 4)
     assert (boxes[:, 0] >= 0).all() and (boxes[:, 2] <= 1024).all()
@@ -251,7 +251,7 @@ def test_realistic_proposals_distribution():
 def test_fixed_proposals_feed_the_roi_head_and_undo():
     """Inside the context the RPN still runs but the RoI head sees the
     fixed boxes; afterwards the class's method is back."""
-    from cbnet_mmdet.utils.benchmark import (FixedProposals, build_detector,
+    from cbnet_lab.benchmark import (FixedProposals, build_detector,
                                              load_benchmark_cfg, make_batch,
                                              preprocess)
     cfg = load_benchmark_cfg(osp.join(

@@ -43,7 +43,7 @@ def test_fuzz_inputs_initialises_the_demo_model(cityscapes_like_root):
 
 def test_build_detector_initialises_the_detector():
     """benchmark.py and profile_model.py build through this function."""
-    from cbnet_mmdet.utils import benchmark as B
+    from cbnet_lab import benchmark as B
     model = B.build_detector(Config.fromfile(DEMO))
     assert_focal_prior(model.rpn_head)
 

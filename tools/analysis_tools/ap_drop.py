@@ -32,7 +32,7 @@ import os.path as osp
 from mmengine.config import Config, DictAction
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_mmdet.evaluation.ap_drop import (ap_drop, default_betas,
+from cbnet_lab.ap_drop import (ap_drop, default_betas,
                                             real_fog_cfg, to_markdown)
 
 

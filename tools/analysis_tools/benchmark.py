@@ -4,7 +4,7 @@ synthetic inputs.
 For every model (configs below, random weights, nothing downloaded):
 parameters, GFLOPs (PyTorch's ``FlopCounterMode``: whole inference and
 backbone+neck; mmcv's compiled ops count zero, see
-``cbnet_mmdet.utils.benchmark.count_flops``), inference latency at batch 1
+``cbnet_lab.benchmark.count_flops``), inference latency at batch 1
 (median, IQR, min, max over ``--repeats`` after ``--warmup``; the RoI
 heads of two-stage models on one fixed, realistic proposal set,
 ``--proposals``), throughput at every ``--batch-sizes``, training step
@@ -115,7 +115,7 @@ def parse_args(argv=None):
                    help='inference RoI heads run on a fixed, realistic '
                    'proposal set, the same for every model, as many as '
                    'its test_cfg.rpn.max_per_img (default; '
-                   'cbnet_mmdet.utils.benchmark.realistic_proposals), or '
+                   'cbnet_lab.benchmark.realistic_proposals), or '
                    'on what each random-weight RPN proposes')
     p.add_argument('--train-batch-size', type=int, default=1,
                    help='images per timed training step')
@@ -182,7 +182,7 @@ class Bench:
     def __init__(self, args):
         import torch
 
-        from cbnet_mmdet.utils import benchmark as B
+        from cbnet_lab import benchmark as B
         self.B, self.torch, self.args = B, torch, args
         self.device = args.device
         self.models, self.optims = {}, {}
@@ -410,7 +410,7 @@ def _f(v, fmt='{:.3f}'):
 
 def _peak_memory_method(device):
     """How :class:`PeakMemory` measures on ``device``, in words."""
-    from cbnet_mmdet.utils.benchmark import hwm_reset_works
+    from cbnet_lab.benchmark import hwm_reset_works
     if str(device).startswith('cuda'):
         return 'torch.cuda.max_memory_allocated above the allocation at entry'
     if hwm_reset_works():
@@ -546,7 +546,7 @@ def plot(scaling, path):
 
 def main(argv=None):
     args = parse_args(argv)
-    from cbnet_mmdet.utils.benchmark import set_malloc_thresholds
+    from cbnet_lab.benchmark import set_malloc_thresholds
 
     # every timed call sees glibc's steady allocator, whether or not a
     # memory measurement (which lowers the mmap threshold) came before it

@@ -7,7 +7,7 @@ One subprocess per arch builds both models (the ``cspe`` one loads the
 zero) and alternates their forwards (``ope, cspe, ope, cspe, ...`` after one
 warm-up each), so load changes on a shared machine hit both alike. Peak
 forward memory comes from one more, untimed forward of each, measured by
-``cbnet_mmdet.utils.benchmark.PeakMemory`` (resident-set peak above the
+``cbnet_lab.benchmark.PeakMemory`` (resident-set peak above the
 level before it, with glibc told to ``mmap`` every allocation above 64 KiB
 so that freed tensors leave the resident set at once).
 Inference mode (``torch.no_grad``, ``eval``), batch 1, random weights,
@@ -62,7 +62,7 @@ def worker(args):
     from mmdet.registry import MODELS
 
     import cbnet_mmdet  # noqa: F401
-    from cbnet_mmdet.utils.benchmark import (PeakMemory, set_malloc_thresholds,
+    from cbnet_lab.benchmark import (PeakMemory, set_malloc_thresholds,
                                              time_calls)
     if args.threads:
         torch.set_num_threads(args.threads)

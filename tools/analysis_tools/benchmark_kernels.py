@@ -39,7 +39,7 @@ import torch
 from cbnet_mmdet.models.layers.cbnet_deform_conv2d import \
     deform_conv2d as gather_deform_conv2d
 from cbnet_mmdet.models.losses import boundary_ops
-from cbnet_mmdet.utils.benchmark import summarize, time_calls
+from cbnet_lab.benchmark import summarize, time_calls
 
 STRIDES = (4, 8, 16, 32, 64)
 

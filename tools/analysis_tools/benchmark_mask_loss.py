@@ -147,7 +147,7 @@ def peak_memory(name, num_rois, args):
 
 def main(argv=None):
     args = parse_args(argv)
-    from cbnet_mmdet.utils.benchmark import set_malloc_thresholds
+    from cbnet_lab.benchmark import set_malloc_thresholds
 
     # glibc's steady allocator for every timed call (as benchmark.py):
     # otherwise the 25 MiB logits gradient is mapped and page-faulted anew

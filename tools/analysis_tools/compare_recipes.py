@@ -69,7 +69,7 @@ from mmengine.config import Config, DictAction
 
 
 def parse_args(argv=None):
-    from cbnet_mmdet.evaluation.recipe_comparison import (PRESETS,
+    from cbnet_lab.recipe_comparison import (PRESETS,
                                                           RECIPE_SETS)
     parser = argparse.ArgumentParser(
         description=__doc__.split('\n\n')[0],
@@ -137,7 +137,7 @@ def data_and_betas(args, recipes) -> tuple:
     """``--data-root`` and ``--betas``, or their defaults: real-data
     recipes (configs with ``test_condition``) test their config's data and
     no betas; the others the preset's data root and three betas."""
-    from cbnet_mmdet.evaluation import recipe_comparison as rc
+    from cbnet_lab import recipe_comparison as rc
     real = rc.reference_condition(recipes) != 'clear'
     betas, data_root = args.betas, args.data_root
     if betas is None:
@@ -154,7 +154,7 @@ def main(argv=None) -> dict:
 
     import torch
 
-    from cbnet_mmdet.evaluation import recipe_comparison as rc
+    from cbnet_lab import recipe_comparison as rc
     if args.threads:
         torch.set_num_threads(args.threads)
     recipes = rc.resolve_recipes(args.set, args.configs, args.only)

@@ -1,7 +1,7 @@
 """Where a detector's time goes: wall time and a ``torch.profiler`` table.
 
 Builds a config's model with random weights (nothing downloaded), feeds it
-the benchmark suite's synthetic batch (``cbnet_mmdet.utils.benchmark``),
+the benchmark suite's synthetic batch (``cbnet_lab.benchmark``),
 and for inference and / or one training step (forward with losses,
 backward, the config's own optimiser step):
 
@@ -124,7 +124,7 @@ class _Ranges:
 def build(args):
     import torch
 
-    from cbnet_mmdet.utils import benchmark as B
+    from cbnet_lab import benchmark as B
     cfg = B.load_benchmark_cfg(args.config)
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
@@ -171,7 +171,7 @@ def profile_call(fn, device, top):
     import torch
     from torch.profiler import ProfilerActivity, profile
 
-    from cbnet_mmdet.utils.benchmark import synchronize
+    from cbnet_lab.benchmark import synchronize
     activities = [ProfilerActivity.CPU]
     if str(device).startswith('cuda'):
         activities.append(ProfilerActivity.CUDA)
@@ -241,7 +241,7 @@ def main(argv=None):
 
     import torch
 
-    from cbnet_mmdet.utils.benchmark import time_calls
+    from cbnet_lab.benchmark import time_calls
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     load_start = ' / '.join(f'{v:.2f}' for v in os.getloadavg())

@@ -6,7 +6,7 @@ Follows MMDetection's ``tools/analysis_tools/test_robustness.py``
 stored in MMDet's format; it also runs configs without
 ``model.backbone.init_cfg`` (the demo) or without ``model.backbone``
 (CBNet-DD), and tests the physical fog of Foggy Cityscapes next to the
-synthetic one. See :mod:`cbnet_mmdet.evaluation.robustness`.
+synthetic one. See :mod:`cbnet_lab.robustness`.
 
 Usage::
 
@@ -38,7 +38,7 @@ from mmengine.config import Config, DictAction
 from mmengine.fileio import dump
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_mmdet.evaluation.robustness import (SUMMARY_METRICS,
+from cbnet_lab.robustness import (SUMMARY_METRICS,
                                                plot_fog_density,
                                                run_benchmark, summarize,
                                                to_markdown)

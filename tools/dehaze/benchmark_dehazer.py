@@ -21,7 +21,7 @@ import torch
 from mmdet.registry import MODELS
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_mmdet.utils.benchmark import PeakMemory, summarize, time_calls
+from cbnet_lab.benchmark import PeakMemory, summarize, time_calls
 
 DEHAZERS = dict(
     attention=dict(type='CBNetAttentionDehazer'),

@@ -1,4 +1,4 @@
-"""The comparison harness (cbnet_mmdet/evaluation/recipe_comparison.py)."""
+"""The comparison harness (cbnet_lab/recipe_comparison.py)."""
 import glob
 import json
 import os
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from tool_helpers import load_tool
 
-from cbnet_mmdet.evaluation import recipe_comparison as rc
+from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 

@@ -21,7 +21,7 @@ from typing import Dict, List, Optional, Sequence
 from mmengine.config import Config
 from mmengine.runner import Runner
 
-from ..utils.checkpoint_fit import require_checkpoint_fit
+from cbnet_mmdet.utils.checkpoint_fit import require_checkpoint_fit
 
 CLEAR_TYPES = ('CityscapesDataset', 'CBNetCityscapesDataset')
 FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'

@@ -6,7 +6,7 @@ Every recipe is an MMDet config; each is trained with MMEngine's
 one seed at a time, on the dataset at ``data_root`` (any dataset in the
 Cityscapes layout: the generated one or the real Cityscapes /
 Foggy Cityscapes), then tested on clear val and on foggy val for each beta
-through :func:`cbnet_mmdet.evaluation.ap_drop.ap_drop`. Each run writes its
+through :func:`cbnet_lab.ap_drop.ap_drop`. Each run writes its
 ``result.json``; a rerun skips finished runs (resumable). The results are
 summarised as mean +- std over seeds per recipe and condition.
 
@@ -21,7 +21,7 @@ Real data. When the recipes' configs set ``test_condition = NAME`` (the
 real-fog configs of ``configs/realfog/``, set ``realfog``), ``data_root``
 is that dataset (a VOC folder) and each run is tested on the config's own
 test set under condition ``NAME``, with no foggy betas
-(:func:`cbnet_mmdet.evaluation.ap_drop.ap_drop`); every recipe of a
+(:func:`cbnet_lab.ap_drop.ap_drop`); every recipe of a
 comparison must then name the same condition.
 """
 import copy
@@ -38,7 +38,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from mmengine.config import Config
 
-from ..utils.checkpoint_tools import last_checkpoint_in
+from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
 from .ap_drop import ap_drop, test_condition
 
 #: Built-in sets: (recipe name, config path relative to the configs root).
@@ -256,7 +256,8 @@ PRESETS: Dict[str, Preset] = {
 
 def configs_root() -> str:
     """The shipped ``configs`` folder (source tree or installed wheel)."""
-    pkg = osp.dirname(osp.dirname(osp.abspath(__file__)))
+    import cbnet_mmdet
+    pkg = osp.dirname(osp.abspath(cbnet_mmdet.__file__))
     for root in (osp.join(osp.dirname(pkg), 'configs'),
                  osp.join(pkg, '.mim', 'configs')):
         if osp.isdir(root):

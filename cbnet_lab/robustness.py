@@ -18,7 +18,7 @@ checkpoint is loaded by a test-only runner per condition (no
 ``model.backbone.init_cfg`` is needed, so CBNet-DD's ``CBNetDistiller``
 works), the corruptions are applied to the clear images of a Foggy
 Cityscapes config too, and the physical fog of Foggy Cityscapes (beta
-sweep, :mod:`cbnet_mmdet.evaluation.ap_drop`) is evaluated alongside.
+sweep, :mod:`cbnet_lab.ap_drop`) is evaluated alongside.
 
 Like MMDet's benchmark the images are corrupted in the loader's channel
 order (BGR by default) although ``imagecorruptions`` assumes RGB: the same
@@ -31,7 +31,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 import numpy as np
 from mmengine.config import Config
 
-from ..datasets.transforms.load_image_from_file import MMCV_LOADER_TYPES
+from cbnet_mmdet.datasets.transforms.load_image_from_file import MMCV_LOADER_TYPES
 from .ap_drop import condition_cfg, evaluate_checkpoint
 
 #: Corruption groups, named and ordered as in MMDet's test_robustness.py

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mmengine.config import Config
 
-from cbnet_mmdet.evaluation.ap_drop import (condition_cfg, drop_table,
+from cbnet_lab.ap_drop import (condition_cfg, drop_table,
                                             to_markdown)
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')

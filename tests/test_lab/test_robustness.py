@@ -17,7 +17,7 @@ from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.fileio import dump
 
-from cbnet_mmdet.evaluation.robustness import (CORRUPTION_GROUPS,
+from cbnet_lab.robustness import (CORRUPTION_GROUPS,
                                                check_corruptions,
                                                corrupted_cfg,
                                                resolve_corruptions,

@@ -15,8 +15,8 @@ from tool_helpers import load_tool
 from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
                                                        write_voc_folder)
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
-from cbnet_mmdet.evaluation import recipe_comparison as rc
-from cbnet_mmdet.evaluation.ap_drop import (ap_drop, default_betas,
+from cbnet_lab import recipe_comparison as rc
+from cbnet_lab.ap_drop import (ap_drop, default_betas,
                                             real_fog_cfg,
                                             with_empty_coco_results)
 
