@@ -4,7 +4,7 @@ from typing import List, Tuple
 import torch
 from mmdet.models.roi_heads import CascadeRoIHead
 from mmdet.models.task_modules.samplers import SamplingResult
-from mmdet.models.utils import empty_instances
+from mmdet.models.utils import empty_instances, unpack_gt_instances
 from mmdet.registry import MODELS
 from mmdet.structures import SampleList
 from mmdet.structures.bbox import bbox2roi
@@ -111,10 +111,12 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
              batch_data_samples: SampleList) -> dict:
         """Box losses of every stage and the last stage's mask losses.
 
-        :meth:`CascadeRoIHead.loss` with one change: the mask losses are
-        not multiplied by ``stage_loss_weights[-1]`` (see the class doc).
-        :meth:`mask_loss` hands them over in ``self._unweighted_losses``
-        instead of returning them to MMDet's weighting loop.
+        MMDet's cascade loop (:meth:`CascadeRoIHead.loss`: assign and
+        sample each stage's proposals, :meth:`bbox_loss` weighted by
+        ``stage_loss_weights[stage]``, refine the boxes for the next stage)
+        written out with its parts, so that the mask losses of the last
+        stage are added at their configured weight, outside the stage
+        weight (see the class doc), and no mask forward runs before it.
 
         Args:
             x (tuple[Tensor]): Multi-level features ``Tensor[B, C, H, W]``.
@@ -126,27 +128,68 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
             ``s{i}.acc`` and ``s{num_stages - 1}.loss_mask`` (and
             ``.loss_edge``).
         """
-        self._unweighted_losses = dict()
-        try:
-            losses = super().loss(x, rpn_results_list, batch_data_samples)
-            losses.update(self._unweighted_losses)
-        finally:
-            del self._unweighted_losses
+        assert len(rpn_results_list) == len(batch_data_samples)
+        batch_gt_instances, batch_gt_instances_ignore, batch_img_metas = \
+            unpack_gt_instances(batch_data_samples)
+        losses = dict()
+        results_list = rpn_results_list
+        last = self.num_stages - 1
+        for stage in range(self.num_stages):
+            self.current_stage = stage
+            sampling_results = self._sample(stage, x, results_list,
+                                            batch_gt_instances,
+                                            batch_gt_instances_ignore)
+            bbox_results = self.bbox_loss(stage, x, sampling_results)
+            weight = self.stage_loss_weights[stage]
+            for name, value in bbox_results['loss_bbox'].items():
+                losses[f's{stage}.{name}'] = (
+                    value * weight if 'loss' in name else value)
+            if stage == last:
+                if self.with_mask:
+                    mask_results = self.mask_loss(stage, x,
+                                                  sampling_results,
+                                                  batch_gt_instances)
+                    losses.update({
+                        f's{stage}.{name}': value
+                        for name, value in mask_results['loss_mask'].items()
+                    })
+                break
+            with torch.no_grad():
+                results_list = self.bbox_head[stage].refine_bboxes(
+                    sampling_results, bbox_results, batch_img_metas)
+            if results_list is None:  # no proposal left
+                break
         return losses
+
+    def _sample(self, stage: int, x: Tuple[Tensor],
+                results_list: InstanceList, batch_gt_instances: InstanceList,
+                batch_gt_instances_ignore: InstanceList
+                ) -> List[SamplingResult]:
+        """Assign and sample one stage's proposals per image, as MMDet's
+        cascade does (the proposals' ``bboxes`` become ``priors``)."""
+        assigner = self.bbox_assigner[stage]
+        sampler = self.bbox_sampler[stage]
+        sampling_results = []
+        for i, results in enumerate(results_list):
+            results.priors = results.pop('bboxes')
+            assign_result = assigner.assign(results, batch_gt_instances[i],
+                                            batch_gt_instances_ignore[i])
+            sampling_results.append(
+                sampler.sample(assign_result, results,
+                               batch_gt_instances[i],
+                               feats=[lvl[i][None] for lvl in x]))
+        return sampling_results
 
     def mask_loss(self, stage: int, x: Tuple[Tensor],
                   sampling_results: List[SamplingResult],
                   batch_gt_instances: InstanceList) -> dict:
-        """Mask loss of the last stage; nothing for the earlier stages.
+        """Mask forward and losses on a stage's positive RoIs.
 
-        :meth:`CascadeRoIHead.loss` calls this for every stage and prefixes
-        and weights whatever ``loss_mask`` holds, so every stage returns an
-        empty ``loss_mask``; no mask forward happens before the last stage.
-        The last stage's losses go to ``self._unweighted_losses`` (set by
-        :meth:`loss`), keyed ``s{stage}.{name}``, outside the stage weight.
+        :meth:`loss` calls it on the last stage only; its ``loss_mask``
+        entries are added there at their configured weight.
 
         Args:
-            stage (int): Current cascade stage.
+            stage (int): ``num_stages - 1`` or ``-1`` (the only mask stage).
             x (tuple[Tensor]): Multi-level features.
             sampling_results (list[:obj:`SamplingResult`]): Samples of this
                 stage, per image.
@@ -154,12 +197,10 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 ``masks``.
 
         Returns:
-            dict: ``loss_mask`` (an empty dict) and, on the last stage,
-            ``mask_preds``/``mask_targets`` (the losses go to
-            ``self._unweighted_losses``).
+            dict: ``mask_preds`` (and ``edge_preds``), ``mask_targets`` and
+            ``loss_mask`` (a dict of the mask head's losses).
         """
-        if stage != self.num_stages - 1:
-            return dict(loss_mask=dict())
+        self._check_mask_stage(stage)
         pos_rois = bbox2roi([res.pos_priors for res in sampling_results])
         mask_results = self._mask_forward(stage, x, pos_rois)
         extra = dict(edge_preds=mask_results['edge_preds']) \
@@ -171,17 +212,6 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 batch_gt_instances=batch_gt_instances,
                 rcnn_train_cfg=self.train_cfg[stage],
                 **extra))
-        stage_losses = mask_results.pop('loss_mask')
-        mask_results['loss_mask'] = dict()
-        unweighted = getattr(self, '_unweighted_losses', None)
-        if unweighted is None:
-            raise RuntimeError(
-                'CBNetCascadeRoIHead.mask_loss is called by '
-                'CBNetCascadeRoIHead.loss, which adds its losses unweighted; '
-                'call loss() rather than mask_loss() alone')
-        unweighted.update(
-            {f's{stage}.{name}': value
-             for name, value in stage_losses.items()})
         return mask_results
 
     def predict_mask(self,

@@ -152,6 +152,37 @@ def test_stage_weight_does_not_scale_mask_loss():
                                4 * base['s2.loss_bbox'])
 
 
+def test_box_losses_are_mmdets_cascade_loop():
+    """The cascade loop written out gives MMDet's ``CascadeRoIHead.loss``
+    box losses exactly (same weights, same sampling seed), and the mask
+    losses are the mask head's alone; the head keeps no state between
+    calls."""
+    ours = MODELS.build(roi_head_cfg())
+    cfg = roi_head_cfg()
+    cfg.type = 'CascadeRoIHead'
+    cfg.pop('mask_head'), cfg.pop('mask_roi_extractor', None)
+    stock = MODELS.build(cfg)
+    missing, unexpected = stock.load_state_dict(ours.state_dict(),
+                                                strict=False)
+    assert not missing and all(k.startswith('mask_') for k in unexpected)
+    feats, proposals, samples = unit_inputs()
+    torch.manual_seed(1)
+    got = ours.loss(feats, copy.deepcopy(proposals), samples)
+    torch.manual_seed(1)
+    ref = stock.loss(feats, copy.deepcopy(proposals), samples)
+    assert set(got) - set(ref) == {'s2.loss_mask', 's2.loss_edge'}
+    for key, value in ref.items():
+        torch.testing.assert_close(got[key], value)
+    assert vars(ours).keys() == vars(MODELS.build(roi_head_cfg())).keys()
+
+
+def test_mask_loss_refuses_a_stage_without_mask_head():
+    head = MODELS.build(roi_head_cfg())
+    feats, _, samples = unit_inputs()
+    with pytest.raises(ValueError, match='last stage only'):
+        head.mask_loss(0, feats, [], [s.gt_instances for s in samples])
+
+
 def test_logged_mask_loss_is_the_configured_weight():
     """A mask loss pinned to 1 logs exactly ``loss_weight`` (not 0.25)."""
     cfg = roi_head_cfg()
