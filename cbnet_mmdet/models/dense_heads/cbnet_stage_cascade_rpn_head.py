@@ -1,8 +1,12 @@
 """One stage of the CBNet Cascade RPN, its losses normalised by positives."""
-from typing import List, Tuple
+from typing import Dict, List
 
+import torch
 from mmdet.models.dense_heads import StageCascadeRPNHead
+from mmdet.models.utils import multi_apply
 from mmdet.registry import MODELS
+from mmdet.utils import InstanceList, OptInstanceList
+from torch import Tensor
 
 from ..layers import CBNetDeformConv2d
 
@@ -67,24 +71,44 @@ class CBNetStageCascadeRPNHead(StageCascadeRPNHead):
             self.rpn_conv.conv = CBNetDeformConv2d.from_mmcv(
                 self.rpn_conv.conv, self.deform_impl)
 
-    def get_targets(self, *args, **kwargs) -> Tuple:
-        """Targets of :class:`StageCascadeRPNHead`, avg factor = positives.
+    def loss_by_feat(self,
+                     anchor_list: List[List[Tensor]],
+                     valid_flag_list: List[List[Tensor]],
+                     cls_scores: List[Tensor],
+                     bbox_preds: List[Tensor],
+                     batch_gt_instances: InstanceList,
+                     batch_img_metas: List[dict],
+                     batch_gt_instances_ignore: OptInstanceList = None
+                     ) -> Dict[str, Tensor]:
+        """:meth:`StageCascadeRPNHead.loss_by_feat` with the average factor
+        chosen here.
 
-        The targets' ``avg_factor`` is already the sum over images of the
-        positives (MMDet's ``PseudoSampler`` counts at least one per image);
-        :meth:`StageCascadeRPNHead.loss_by_feat` replaces it with
-        ``anchors / 200`` when the sampling results say their factor counts
-        positives only. Marking them as counting negatives too (the flag is
-        read there and nowhere else; the factor itself is unchanged) keeps
-        the positives' count.
-
-        Returns:
-            tuple: As :meth:`StageCascadeRPNHead.get_targets`.
+        The targets' ``avg_factor`` is the number of positives of the batch
+        (MMDet's ``PseudoSampler`` counts at least one per image), or the
+        sampler's factor with a sampler in ``train_cfg``; MMDet's head
+        replaces the former with ``anchors / 200``, which this head does
+        only with ``normalize_by_num_pos=False``. Same arguments and
+        returns as MMDet's method (``loss_rpn_cls`` on a stage that
+        classifies, ``loss_rpn_reg``).
         """
-        targets = super().get_targets(*args, **kwargs)
-        if self.normalize_by_num_pos and targets is not None \
-                and kwargs.get('return_sampling_results', False):
-            sampling_results: List = targets[-1]
-            for result in sampling_results:
-                result.avg_factor_with_neg = True
-        return targets
+        featmap_sizes = [featmap.size()[-2:] for featmap in bbox_preds]
+        (labels_list, label_weights_list, bbox_targets_list,
+         bbox_weights_list, avg_factor, sampling_results_list) = \
+            self.get_targets(
+                anchor_list, valid_flag_list, featmap_sizes,
+                batch_gt_instances, batch_img_metas,
+                batch_gt_instances_ignore=batch_gt_instances_ignore,
+                return_sampling_results=True)
+        if not self.normalize_by_num_pos and \
+                not sampling_results_list[0].avg_factor_with_neg:
+            # MMDet's constant, from guided anchoring
+            avg_factor = sum(label.numel() for label in labels_list) / 200.0
+        # per image, per level -> per level, all images
+        mlvl_anchors = [torch.cat(anchors) for anchors in zip(*anchor_list)]
+        loss_cls, loss_reg = multi_apply(
+            self.loss_by_feat_single, cls_scores, bbox_preds, mlvl_anchors,
+            labels_list, label_weights_list, bbox_targets_list,
+            bbox_weights_list, avg_factor=avg_factor)
+        if self.with_cls:
+            return dict(loss_rpn_cls=loss_cls, loss_rpn_reg=loss_reg)
+        return dict(loss_rpn_reg=loss_reg)
