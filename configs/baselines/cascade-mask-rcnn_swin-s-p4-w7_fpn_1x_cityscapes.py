@@ -9,9 +9,12 @@
 # checkpoint): the backbone starts from ImageNet-1k, the neck and heads
 # from scratch; (2) AdamW as Swin's recipe; (3) our dataset type/loader and
 # evaluators (COCO bbox+segm AP and mIoU).
-_base_ = 'mmdet::cascade_rcnn/cascade-mask-rcnn_r50_fpn_1x_coco.py'
-
-custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
+_base_ = [
+    'mmdet::_base_/models/cascade-mask-rcnn_r50_fpn.py',
+    '../_base_/datasets/cityscapes_instance.py',
+    'mmdet::_base_/schedules/schedule_1x.py',
+    'mmdet::_base_/default_runtime.py'
+]
 # checkpoints that torch.load's default weights_only reads without
 # cbnet_mmdet imported (DetInferencer(weights=CKPT) alone)
 default_hooks = dict(
@@ -66,71 +69,6 @@ model = dict(
                          [0.033, 0.033, 0.067, 0.067])
         ],
         mask_head=dict(num_classes=num_classes)))
-
-# ---- data: 8-class Cityscapes (MMDet's Cityscapes instance settings) ----
-dataset_type = 'CBNetCityscapesDataset'
-data_root = 'data/cityscapes/'
-val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
-train_pipeline = [
-    dict(type='LoadImageFromFile'),
-    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
-    # shorter side 800-1024 of the 2048x1024 images (MMDet's recipe)
-    dict(
-        type='RandomResize',
-        scale=[(2048, 800), (2048, 1024)],
-        keep_ratio=True),
-    dict(type='RandomFlip', prob=0.5),
-    dict(type='PackDetInputs')
-]
-test_pipeline = [
-    # the backend names an empty or missing file; MMDet's inference API
-    # keeps these arguments for the loaders it puts in this one's place
-    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
-    dict(type='CBNetCheckImage'),  # H x W x 3, else an error naming it
-    dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
-    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
-    dict(
-        type='PackDetInputs',
-        meta_keys=('img_id', 'img_path', 'ori_shape', 'img_shape',
-                   'scale_factor'))
-]
-train_dataloader = dict(
-    batch_size=1,  # x 8 GPUs, MMDet's Cityscapes recipe
-    dataset=dict(
-        _delete_=True,
-        type='RepeatDataset',
-        times=8,  # 8 epochs x 8 repeats = 64 passes (MMDet's recipe)
-        dataset=dict(
-            type=dataset_type,
-            data_root=data_root,
-            ann_file='annotations/instancesonly_filtered_gtFine_train.json',
-            data_prefix=dict(img='leftImg8bit/train/'),
-            filter_cfg=dict(filter_empty_gt=True, min_size=32),
-            pipeline=train_pipeline)))
-val_dataloader = dict(
-    batch_size=1,
-    dataset=dict(
-        type=dataset_type,
-        data_root=data_root,
-        ann_file=val_ann_file,
-        data_prefix=dict(img='leftImg8bit/val/'),
-        filter_cfg=dict(filter_empty_gt=True, min_size=32),
-        pipeline=test_pipeline))
-test_dataloader = val_dataloader
-val_evaluator = [
-    dict(
-        type='CocoMetric',
-        ann_file=data_root + val_ann_file,
-        metric=['bbox', 'segm'],
-        classwise=True),
-    # masks below score 0.5 are not painted; the highest score wins overlaps
-    dict(
-        type='CBNetInstanceMIoUMetric',
-        ann_file=data_root + val_ann_file,
-        score_thr=0.5,
-        paint_order='score'),
-]
-test_evaluator = val_evaluator
 
 # ---- schedule: MMDet's Cityscapes timing, Swin's optimiser ----
 max_epochs = 8

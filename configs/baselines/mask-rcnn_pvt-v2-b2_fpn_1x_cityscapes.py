@@ -9,17 +9,19 @@
 # (MMDet publishes no Mask R-CNN PVTv2 checkpoint): the backbone starts from
 # ImageNet-1k, the neck and heads from scratch; (2) AdamW as PVT's recipe;
 # (3) our dataset type/loader and evaluators (COCO bbox+segm AP and mIoU).
-_base_ = 'mmdet::cityscapes/mask-rcnn_r50_fpn_1x_cityscapes.py'
-
-custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
+# Bases: MMDet's Mask R-CNN model, our 8-class Cityscapes data, MMDet's
+# runtime; the rest of `mmdet::cityscapes/mask-rcnn_r50_fpn_1x_cityscapes.py`
+# (8 classes, its schedule) is restated below.
+_base_ = [
+    'mmdet::_base_/models/mask-rcnn_r50_fpn.py',
+    '../_base_/datasets/cityscapes_instance.py',
+    'mmdet::_base_/schedules/schedule_1x.py',
+    'mmdet::_base_/default_runtime.py'
+]
 # checkpoints that torch.load's default weights_only reads without
 # cbnet_mmdet imported (DetInferencer(weights=CKPT) alone)
 default_hooks = dict(
     weights_only=dict(type='CBNetWeightsOnlyCheckpointHook'))
-
-data_root = 'data/cityscapes/'
-dataset_type = 'CBNetCityscapesDataset'
-val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
 
 model = dict(
     backbone=dict(
@@ -31,55 +33,30 @@ model = dict(
             type='Pretrained',
             checkpoint='https://github.com/whai362/PVT/'
             'releases/download/v2/pvt_v2_b2.pth')),
-    neck=dict(in_channels=[64, 128, 320, 512]))
+    neck=dict(in_channels=[64, 128, 320, 512]),
+    # MMDet's Cityscapes Mask R-CNN: 8 classes, smooth-L1 box loss
+    roi_head=dict(
+        bbox_head=dict(
+            type='Shared2FCBBoxHead',
+            num_classes=8,
+            loss_bbox=dict(type='SmoothL1Loss', beta=1.0, loss_weight=1.0)),
+        mask_head=dict(num_classes=8)))
 
-train_pipeline = [
-    dict(type='LoadImageFromFile'),
-    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
-    # shorter side 800-1024 of the 2048x1024 images (MMDet's recipe)
+# MMDet's Cityscapes schedule: 8 epochs of the x8 repeated set, lr step
+# after epoch 7 ("[7] yields higher performance than [6]")
+train_cfg = dict(max_epochs=8)
+param_scheduler = [
     dict(
-        type='RandomResize',
-        scale=[(2048, 800), (2048, 1024)],
-        keep_ratio=True),
-    dict(type='RandomFlip', prob=0.5),
-    dict(type='PackDetInputs')
+        type='LinearLR', start_factor=0.001, by_epoch=False, begin=0,
+        end=500),
+    dict(
+        type='MultiStepLR',
+        begin=0,
+        end=8,
+        by_epoch=True,
+        milestones=[7],
+        gamma=0.1)
 ]
-test_pipeline = [
-    # the backend names an empty or missing file; MMDet's inference API
-    # keeps these arguments for the loaders it puts in this one's place
-    dict(type='LoadImageFromFile', backend_args=dict(backend='cbnet_image')),
-    dict(type='CBNetCheckImage'),  # H x W x 3, else an error naming it
-    dict(type='Resize', scale=(2048, 1024), keep_ratio=True),
-    dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
-    dict(
-        type='PackDetInputs',
-        meta_keys=('img_id', 'img_path', 'ori_shape', 'img_shape',
-                   'scale_factor'))
-]
-# the base wraps the training set in RepeatDataset(times=8)
-train_dataloader = dict(
-    dataset=dict(
-        dataset=dict(
-            type=dataset_type, data_root=data_root,
-            pipeline=train_pipeline)))
-val_dataloader = dict(
-    dataset=dict(
-        type=dataset_type, data_root=data_root, pipeline=test_pipeline))
-test_dataloader = val_dataloader
-val_evaluator = [
-    dict(
-        type='CocoMetric',
-        ann_file=data_root + val_ann_file,
-        metric=['bbox', 'segm'],
-        classwise=True),
-    # masks below score 0.5 are not painted; the highest score wins overlaps
-    dict(
-        type='CBNetInstanceMIoUMetric',
-        ann_file=data_root + val_ann_file,
-        score_thr=0.5,
-        paint_order='score'),
-]
-test_evaluator = val_evaluator
 
 # PVT's detection recipe: AdamW, lr 1e-4, weight decay 1e-4 (there for a
 # batch of 16; kept for the Cityscapes batch of 8 x 1)
