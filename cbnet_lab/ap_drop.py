@@ -23,18 +23,15 @@ from mmengine.runner import Runner
 
 from cbnet_mmdet.utils.checkpoint_fit import require_checkpoint_fit
 
+from .metric_keys import columns
+
 CLEAR_TYPES = ('CityscapesDataset', 'CBNetCityscapesDataset')
 FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'
 
 #: Table columns: (name, metric key, scale). Metrics from ``CocoMetric``
 #: (prefix ``coco``) and ``CBNetInstanceMIoUMetric`` (``cityscapes``),
 #: reported in percent like the paper.
-COLUMNS = (
-    ('box AP', 'coco/bbox_mAP', 100.0),
-    ('mask AP', 'coco/segm_mAP', 100.0),
-    ('mask AP50', 'coco/segm_mAP_50', 100.0),
-    ('mIoU', 'cityscapes/mIoU', 100.0),
-)
+COLUMNS = columns('box AP', 'mask AP', 'mask AP50', 'mIoU')
 #: Columns whose drop (clear minus foggy) is reported.
 DROP_COLUMNS = ('box AP', 'mask AP', 'mIoU')
 

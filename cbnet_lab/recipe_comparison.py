@@ -39,7 +39,9 @@ import numpy as np
 from mmengine.config import Config
 
 from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
+
 from .ap_drop import ap_drop, test_condition
+from .metric_keys import columns as metric_columns
 
 #: Built-in sets: (recipe name, config path relative to the configs root).
 RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
@@ -173,18 +175,9 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
 #: Reported columns: (name, metric key, scale to percent). Detection sets
 #: report COCO AP (``CocoMetric``) and mIoU (``CBNetInstanceMIoUMetric``);
 #: RPN sets the average recall at 100/300/1000 proposals.
-DETECTION_COLUMNS = (
-    ('box AP', 'coco/bbox_mAP', 100.0),
-    ('box AP50', 'coco/bbox_mAP_50', 100.0),
-    ('mask AP', 'coco/segm_mAP', 100.0),
-    ('mask AP50', 'coco/segm_mAP_50', 100.0),
-    ('mIoU', 'cityscapes/mIoU', 100.0),
-)
-PROPOSAL_COLUMNS = (
-    ('AR@100', 'coco/AR@100', 100.0),
-    ('AR@300', 'coco/AR@300', 100.0),
-    ('AR@1000', 'coco/AR@1000', 100.0),
-)
+DETECTION_COLUMNS = metric_columns('box AP', 'box AP50', 'mask AP',
+                                   'mask AP50', 'mIoU')
+PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
 
 
 @dataclass

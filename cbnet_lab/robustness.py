@@ -31,8 +31,11 @@ from typing import Callable, Dict, List, Optional, Sequence
 import numpy as np
 from mmengine.config import Config
 
-from cbnet_mmdet.datasets.transforms.load_image_from_file import MMCV_LOADER_TYPES
+from cbnet_mmdet.datasets.transforms.load_image_from_file import \
+    MMCV_LOADER_TYPES
+
 from .ap_drop import condition_cfg, evaluate_checkpoint
+from .metric_keys import columns
 
 #: Corruption groups, named and ordered as in MMDet's test_robustness.py
 #: (``benchmark``: the 15 of the benchmark; ``all`` adds the 4 hold-out).
@@ -54,8 +57,8 @@ NUM_BENCHMARK = 15
 #: Loaders after which ``Corrupt`` is inserted.
 LOADER_TYPES = MMCV_LOADER_TYPES + ('CBNetLoadImageFromFile', )
 #: Metric keys summarised: (label, key of CocoMetric / our mIoU metric).
-SUMMARY_METRICS = (('box AP', 'coco/bbox_mAP'), ('mask AP', 'coco/segm_mAP'),
-                   ('mIoU', 'cityscapes/mIoU'))
+SUMMARY_METRICS = tuple(
+    (label, key) for label, key, _ in columns('box AP', 'mask AP', 'mIoU'))
 
 
 def resolve_corruptions(names: Sequence[str]) -> List[str]:

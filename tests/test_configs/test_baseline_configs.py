@@ -15,9 +15,9 @@ import torch
 from mmengine.config import Config
 
 from cbnet_lab.benchmark import (build_detector, has_mask_head,
-                                         head_num_classes,
-                                         load_benchmark_cfg, make_batch,
-                                         preprocess, train_step)
+                                 head_num_classes,
+                                 load_benchmark_cfg, make_batch,
+                                 preprocess, train_step)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 CONFIGS = sorted(glob.glob(osp.join(ROOT, 'configs', 'baselines', '*.py')))

@@ -8,7 +8,7 @@ import pytest
 from mmengine.config import Config
 
 from cbnet_lab.ap_drop import (condition_cfg, drop_table,
-                                            to_markdown)
+                               to_markdown)
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',

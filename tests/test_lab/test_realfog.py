@@ -17,8 +17,8 @@ from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab.ap_drop import (ap_drop, default_betas,
-                                            real_fog_cfg,
-                                            with_empty_coco_results)
+                               real_fog_cfg,
+                               with_empty_coco_results)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')

@@ -18,10 +18,10 @@ from mmengine.config import Config
 from mmengine.fileio import dump
 
 from cbnet_lab.robustness import (CORRUPTION_GROUPS,
-                                               check_corruptions,
-                                               corrupted_cfg,
-                                               resolve_corruptions,
-                                               summarize)
+                                  check_corruptions,
+                                  corrupted_cfg,
+                                  resolve_corruptions,
+                                  summarize)
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 DEMO = osp.join(ROOT, 'configs', 'demo',

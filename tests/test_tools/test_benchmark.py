@@ -14,7 +14,7 @@ from tool_helpers import load_tool
 
 import cbnet_lab.benchmark as benchmark_utils
 from cbnet_lab.benchmark import (PeakMemory, count_flops,
-                                         strip_pretrained, summarize)
+                                 strip_pretrained, summarize)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 SCRIPT = osp.join(ROOT, 'tools', 'analysis_tools', 'benchmark.py')
@@ -252,8 +252,8 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
     """Inside the context the RPN still runs but the RoI head sees the
     fixed boxes; afterwards the class's method is back."""
     from cbnet_lab.benchmark import (FixedProposals, build_detector,
-                                             load_benchmark_cfg, make_batch,
-                                             preprocess)
+                                     load_benchmark_cfg, make_batch,
+                                     preprocess)
     cfg = load_benchmark_cfg(osp.join(
         ROOT, 'configs', 'demo',
         'mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'))

@@ -33,7 +33,7 @@ from mmengine.config import Config, DictAction
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_lab.ap_drop import (ap_drop, default_betas,
-                                            real_fog_cfg, to_markdown)
+                               real_fog_cfg, to_markdown)
 
 
 def parse_args(argv=None):

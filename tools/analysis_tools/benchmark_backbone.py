@@ -63,7 +63,7 @@ def worker(args):
 
     import cbnet_mmdet  # noqa: F401
     from cbnet_lab.benchmark import (PeakMemory, set_malloc_thresholds,
-                                             time_calls)
+                                     time_calls)
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)

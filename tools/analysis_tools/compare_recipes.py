@@ -70,7 +70,7 @@ from mmengine.config import Config, DictAction
 
 def parse_args(argv=None):
     from cbnet_lab.recipe_comparison import (PRESETS,
-                                                          RECIPE_SETS)
+                                             RECIPE_SETS)
     parser = argparse.ArgumentParser(
         description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,

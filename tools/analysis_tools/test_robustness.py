@@ -39,9 +39,9 @@ from mmengine.fileio import dump
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_lab.robustness import (SUMMARY_METRICS,
-                                               plot_fog_density,
-                                               run_benchmark, summarize,
-                                               to_markdown)
+                                  plot_fog_density,
+                                  run_benchmark, summarize,
+                                  to_markdown)
 
 
 def parse_args(argv=None):
