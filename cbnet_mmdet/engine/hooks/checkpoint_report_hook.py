@@ -6,15 +6,9 @@ from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint_fit import (MAX_LISTED,
-                                              check_checkpoint_fits,
+from cbnet_mmdet.utils.checkpoint_fit import (check_checkpoint_fits,
                                               compare_state_dicts, listed,
                                               misfit_message)
-
-#: The helpers that moved to :mod:`cbnet_mmdet.utils.checkpoint_fit`, under
-#: the names other modules import from here.
-__all__ = ['CBNetCheckpointReportHook', 'MAX_LISTED', 'compare_state_dicts']
-_listed = listed
 
 
 @HOOKS.register_module()
@@ -26,7 +20,8 @@ class CBNetCheckpointReportHook(Hook):
     bare ``print`` (not in the log file) in a single long paragraph. This
     hook logs, before the weights are copied, a one-line summary (``N of M
     model tensors loaded``) and, as a warning, the missing, unexpected and
-    shape-mismatched tensors (first :data:`MAX_LISTED` of each, with
+    shape-mismatched tensors (the first
+    :data:`cbnet_mmdet.utils.checkpoint_fit.MAX_LISTED` of each, with
     counts). A checkpoint of which no tensor fits (the wrong file, another
     architecture) raises ``ValueError`` naming it, instead of training from
     scratch without notice.
@@ -81,7 +76,7 @@ class CBNetCheckpointReportHook(Hook):
         if problems:
             runner.logger.warning(
                 'CBNetCheckpointReportHook: not loaded from ' + name + ':\n'
-                + '\n'.join(f'  {k} ({len(v)}): {_listed(v)}'
+                + '\n'.join(f'  {k} ({len(v)}): {listed(v)}'
                             for k, v in problems))
         if not report['loaded'] and not self.allow_no_match:
             raise ValueError(

@@ -5,8 +5,7 @@ import torch
 from mmengine.logging import MMLogger
 from torch import nn
 
-from cbnet_mmdet.engine.hooks.checkpoint_report_hook import (
-    _listed, compare_state_dicts)
+from ...utils.checkpoint_fit import compare_state_dicts, listed
 
 #: Where a dehazer's weights sit inside the checkpoints this package
 #: writes: the dehazer training model (``dehazer.``), a detector with a
@@ -86,7 +85,7 @@ def load_dehazer_checkpoint(dehazer: nn.Module,
                 if report[k]]
     summary = (f'{type(dehazer).__name__}: {len(report["loaded"])} of '
                f'{len(model_state)} tensors fit in {filename}')
-    details = '\n'.join(f'  {k} ({len(v)}): {_listed(v)}'
+    details = '\n'.join(f'  {k} ({len(v)}): {listed(v)}'
                         for k, v in problems)
     if problems and (strict or not report['loaded']):
         raise RuntimeError(
