@@ -8,9 +8,12 @@ the plugin (``cbnet_mmdet``: registered components only).
   ``tools/analysis_tools/ap_drop.py``.
 - :mod:`cbnet_lab.robustness`: the corruption benchmark (mPC, rPC) next to
   the fog sweep; ``tools/analysis_tools/test_robustness.py``.
-- :mod:`cbnet_lab.benchmark`: speed, memory and FLOPs measurement;
-  ``tools/analysis_tools/benchmark.py``, ``profile_model.py`` and the
-  component benchmarks.
+- :mod:`cbnet_lab.model_benchmark`: several detectors' speed, memory and
+  FLOPs in one alternated run (``tools/analysis_tools/benchmark.py``), on
+  the measurement helpers of :mod:`cbnet_lab.benchmark` (timing, peak
+  memory, FLOPs, realistic proposals), which ``profile_model.py`` and the
+  component benchmarks use too.
+- :mod:`cbnet_lab.metric_keys`: the reported metrics, named once.
 
 Installed with the plugin (the tools import it), never imported by it.
 """

@@ -1,0 +1,396 @@
+"""Speed, memory and FLOPs of several detectors in one run, measured in
+alternation on the same synthetic inputs: the engine of
+``tools/analysis_tools/benchmark.py`` (which documents what is measured and
+how; the helpers it uses are :mod:`cbnet_lab.benchmark`).
+
+:func:`run` takes the tool's parsed arguments and returns the results;
+:func:`markdown` and :func:`plot` report them; :func:`machine` and
+:func:`load_average` describe where they were measured.
+"""
+import copy
+import os
+import os.path as osp
+import platform
+import sys
+from contextlib import nullcontext
+
+#: how the inference RoI heads got their proposals, for the tables
+PROPOSALS = dict(
+    fixed='one fixed, realistic proposal set for every model '
+    '(realistic_proposals), as many per image as its RPN keeps at test '
+    'time (test_cfg.rpn.max_per_img: the top ones of the same 1000)',
+    model="each random-weight RPN's own proposals")
+#: the reference row of the ratios
+REFERENCE = 'cascade-mask-rcnn_swin-s'
+
+
+class Bench:
+    """The built models and their measurement calls."""
+
+    def __init__(self, args):
+        import torch
+
+        from cbnet_lab import benchmark as B
+        self.B, self.torch, self.args = B, torch, args
+        self.device = args.device
+        self.models, self.optims = {}, {}
+        from mmengine.config import DictAction
+        for name, path in args.configs.items():
+            cfg = B.load_benchmark_cfg(path)
+            if args.overrides.get(name):
+                # the values parsed as on MMEngine's command lines
+                cfg.merge_from_dict({
+                    k: DictAction._parse_iterable(v)
+                    for k, v in args.overrides[name].items()})
+            model = B.build_detector(cfg).to(self.device)
+            self.models[name] = model
+            self.optims[name] = cfg.get('optim_wrapper')
+            print(f'built {name}', file=sys.stderr)
+
+    def autocast(self):
+        torch = self.torch
+        return torch.autocast('cuda', dtype=torch.float16,
+                              enabled=self.args.amp)
+
+    def batch(self, name, size, batch_size=1, num_items=None):
+        model = self.models[name]
+        return self.B.make_batch(
+            batch_size, tuple(size),
+            num_items=num_items or self.args.num_items,
+            with_mask=self.B.has_mask_head(model))
+
+    def predict_call(self, name, raw):
+        model, torch = self.models[name], self.torch
+
+        fixed = self.args.proposals == 'fixed'
+
+        def call():
+            model.eval()
+            with torch.no_grad(), self.autocast(), \
+                    self.B.FixedProposals(model) if fixed else nullcontext():
+                model(**self.B.preprocess(model, raw, False),
+                      mode='predict')
+
+        return call
+
+    def train_call(self, name, raw):
+        from mmengine.optim import build_optim_wrapper
+        model = self.models[name]
+        cfg = dict(self.optims[name] or dict(
+            type='OptimWrapper', optimizer=dict(type='SGD', lr=1e-5)))
+        if self.args.amp:
+            cfg['type'] = 'AmpOptimWrapper'
+        # a tiny lr: the weights barely move between the timed steps
+        cfg['optimizer'] = dict(cfg['optimizer'], lr=1e-8)
+        wrapper = build_optim_wrapper(model, cfg)
+
+        def call():
+            model.train()
+            data = self.B.preprocess(model, raw, True)
+            with self.autocast():
+                self.B.train_step(model, data, wrapper)
+
+        return call, wrapper
+
+    def measure(self, calls, repeats, warmup, on_round=None):
+        """Alternate ``calls`` (name -> fn): ``repeats`` timed rounds, then
+        one more call of each for its peak memory (measuring memory changes
+        how the allocator works, see ``PeakMemory``, so it is never timed).
+        ``on_round(out)`` after every timed round: a run cut short (a time
+        limit) keeps the rounds it finished.
+        """
+        B = self.B
+        out = {n: dict(times=[], peak_mib=[]) for n in calls}
+        for _ in range(warmup):
+            for fn in calls.values():
+                fn()
+        for i in range(repeats):
+            for name, fn in calls.items():
+                out[name]['times'].append(
+                    B.time_calls(fn, 1, 0, self.device)[0])
+            print(f'round {i + 1}/{repeats}: ' + ', '.join(
+                f'{n} {v["times"][-1]:.3f} s' for n, v in out.items()),
+                  file=sys.stderr)
+            if on_round is not None:
+                on_round(out)
+        for name, fn in calls.items():
+            with B.PeakMemory(self.device) as mem:
+                fn()
+                B.synchronize(self.device)
+            out[name]['peak_mib'].append(mem.peak)
+        return out
+
+
+def _peak(values):
+    values = [v for v in values if v is not None]
+    return max(values) if values else None
+
+
+def run(args, checkpoint=lambda results, scaling: None, root=None):
+    """Measure; ``checkpoint(results, scaling)`` after every timed round
+    and phase, so a run killed later (out of memory in a training step, a
+    time limit) keeps what it measured. Config paths are recorded relative
+    to ``root`` (as given without it)."""
+    bench = Bench(args)
+    B, names, size = bench.B, list(bench.models), args.size
+    results = {
+        n: dict(config=osp.relpath(args.configs[n], root)
+                if root else args.configs[n])
+        for n in names
+    }
+    for n in names:
+        model = bench.models[n]
+        results[n]['params_m'] = B.count_params(model) / 1e6
+        results[n]['weights_mib'] = sum(
+            p.numel() * p.element_size() for p in model.parameters()) / 2**20
+        if args.proposals == 'fixed' and hasattr(model, 'rpn_head'):
+            results[n]['test_proposals'] = B.FixedProposals(model).num
+        if not args.no_flops:
+            model.eval()
+            raw = bench.batch(n, size)
+            results[n]['gflops'] = B.count_flops(
+                model, B.preprocess(model, raw, False))
+        print(f'counted {n}', file=sys.stderr)
+    for bs in [] if args.no_infer else args.batch_sizes:
+        calls = {n: bench.predict_call(n, bench.batch(n, size, bs))
+                 for n in names}
+
+        def keep(meas, bs=bs):
+            for n in names:
+                s = B.summarize(meas[n]['times'])
+                results[n].setdefault('inference', {})[str(bs)] = dict(
+                    seconds=s, images_per_s=bs / s['median'],
+                    peak_mib=_peak(meas[n]['peak_mib']),
+                    times=meas[n]['times'])
+            checkpoint(results, dict(sizes={}, items={}))
+
+        keep(bench.measure(calls, args.repeats, args.warmup, on_round=keep))
+        print(f'inference batch {bs} done', file=sys.stderr)
+    if not args.no_train:
+        # the timed training steps move the weights (lr 1e-8, but a random
+        # model's proposal scores are near ties); the scaling study measures
+        # inference again, so its models' weights are put back afterwards
+        initial = {n: copy.deepcopy(bench.models[n].state_dict())
+                   for n in args.scale_models if args.scale_sizes}
+        calls, wrappers = {}, {}
+        for n in names:
+            calls[n], wrappers[n] = bench.train_call(
+                n, bench.batch(n, size, args.train_batch_size))
+
+        def keep_train(meas):
+            for n in names:
+                results[n]['train_step'] = dict(
+                    seconds=B.summarize(meas[n]['times']),
+                    peak_mib=_peak(meas[n]['peak_mib']),
+                    times=meas[n]['times'])
+            checkpoint(results, dict(sizes={}, items={}))
+
+        keep_train(bench.measure(calls, args.repeats, args.warmup,
+                                 on_round=keep_train))
+        del wrappers
+        for n, state in initial.items():
+            bench.models[n].load_state_dict(state)
+        del initial
+        print('training done', file=sys.stderr)
+    scaling = dict(sizes={}, items={})
+    for hw in args.scale_sizes:
+        calls = {n: bench.predict_call(n, bench.batch(n, hw))
+                 for n in args.scale_models}
+        meas = bench.measure(calls, args.repeats, args.warmup)
+        for n in args.scale_models:
+            scaling['sizes'].setdefault(n, []).append(dict(
+                size=list(hw),
+                seconds=B.summarize(meas[n]['times'])['median'],
+                peak_mib=_peak(meas[n]['peak_mib'])))
+        print(f'scaling size {hw} done', file=sys.stderr)
+        checkpoint(results, scaling)
+    if not args.no_train:
+        for k in args.scale_items:
+            calls = {}
+            for n in args.scale_models:
+                calls[n], _ = bench.train_call(
+                    n, bench.batch(n, size, args.train_batch_size,
+                                   num_items=k))
+            meas = bench.measure(calls, args.repeats, args.warmup)
+            for n in args.scale_models:
+                scaling['items'].setdefault(n, []).append(dict(
+                    num_items=k,
+                    seconds=B.summarize(meas[n]['times'])['median'],
+                    peak_mib=_peak(meas[n]['peak_mib'])))
+            print(f'scaling items {k} done', file=sys.stderr)
+    return results, scaling
+
+
+def load_average():
+    """1-, 5- and 15-minute load averages, or ``None`` (no ``getloadavg``)."""
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
+
+
+def machine(args):
+    """The machine, thread count and software of the run."""
+    import mmcv
+    import mmdet
+    import torch
+
+    import cbnet_mmdet
+    info = dict(
+        platform=platform.platform(),
+        processor=platform.processor() or platform.machine(),
+        cpu_count=os.cpu_count(),
+        threads=torch.get_num_threads(),
+        omp_num_threads=os.environ.get('OMP_NUM_THREADS'),
+        python=platform.python_version(),
+        torch=torch.__version__, mmcv=mmcv.__version__,
+        mmdet=mmdet.__version__, amp=args.amp,
+        # which copy was measured: the installed one, or a checkout's on
+        # PYTHONPATH (to compare two checkouts)
+        cbnet_mmdet=osp.dirname(cbnet_mmdet.__file__))
+    if args.device.startswith('cuda'):
+        info['device'] = torch.cuda.get_device_name(args.device)
+    else:
+        info['device'] = (f'CPU {info["processor"]}, {info["cpu_count"]} '
+                          f'cores, {info["threads"]} torch threads')
+    return info
+
+
+def _f(v, fmt='{:.3f}'):
+    return '-' if v is None else fmt.format(v)
+
+
+def _peak_memory_method(device):
+    """How :class:`PeakMemory` measures on ``device``, in words."""
+    from cbnet_lab.benchmark import hwm_reset_works
+    if str(device).startswith('cuda'):
+        return 'torch.cuda.max_memory_allocated above the allocation at entry'
+    if hwm_reset_works():
+        return 'resident-set high-water mark (VmHWM, reset per call)'
+    return ('resident set polled every 2 ms (this kernel does not keep '
+            'VmHWM after a reset; a lower bound)')
+
+
+def markdown(meta, results, scaling):
+    """The tables of ``benchmark.md``."""
+    ref = results.get(REFERENCE)
+    h, w = meta['size']
+    mach = meta['machine']
+
+    def load(key):
+        v = meta.get(key)
+        return '-' if not v else ' / '.join(f'{x:.2f}' for x in v)
+
+    lines = [
+        f'Input {h}x{w}, {meta["num_items"]} instances per image (training)'
+        f', {meta["repeats"]} timed repeats after {meta["warmup"]} warm-up, '
+        f'random weights; inference RoI heads on '
+        f'{PROPOSALS[meta.get("proposals", "model")]}.' +
+        (' PARTIAL: the run stopped before its end; the missing cells were '
+         'not measured.' if meta.get('partial') else ''), '',
+        f'- command: `{meta["command"]}`',
+        f'- date: {meta["date"]}, wall time {_f(meta.get("wall_s"), "{:.0f}")}'
+        ' s',
+        f'- machine: {mach["device"]}; {mach["platform"]}',
+        f'- threads: torch {mach["threads"]}, OMP_NUM_THREADS='
+        f'{mach["omp_num_threads"] or "unset"}',
+        f'- load average (1 / 5 / 15 min): start {load("load_start")}, '
+        f'end {load("load_end")}',
+        f'- software: Python {mach["python"]}, torch {mach["torch"]}, mmcv '
+        f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}; '
+        f'cbnet_mmdet from {mach.get("cbnet_mmdet", "-")}',
+        f'- peak memory: {meta.get("peak_memory", "-")}',
+    ] + [
+        f'- {name}: ' + ', '.join(f'`{k}={v}`' for k, v in opts.items())
+        for name, opts in meta.get('overrides', {}).items()
+    ] + ([
+        '- proposals per image at test time: ' + ', '.join(
+            f'{name} {r["test_proposals"]}' for name, r in results.items()
+            if 'test_proposals' in r)
+    ] if any('test_proposals' in r for r in results.values()) else []) + [
+        '',
+        '| model | params (M) | GFLOPs infer / backbone+neck | latency b1 '
+        '(s, median [IQR]) | img/s ' +
+        ' | img/s '.join(f'b{b}' for b in meta['batch_sizes']) +
+        f' | train step b{meta.get("train_batch_size", 1)} (s) | peak mem '
+        'infer / train (MiB) '
+        '| latency / Swin-S | train / Swin-S | params / Swin-S |',
+        '|---|---|---|---|' + '---|' * len(meta['batch_sizes']) +
+        '---|---|---|---|---|'
+    ]
+
+    def ratio(r, key):
+        if ref is None:
+            return None
+        get = {
+            'lat': lambda x: x.get('inference', {}).get('1', {}).get(
+                'seconds', {}).get('median'),
+            'train': lambda x: x.get('train_step', {}).get(
+                'seconds', {}).get('median'),
+            'params': lambda x: x['params_m'],
+        }[key]
+        a, b = get(r), get(ref)
+        return a / b if a is not None and b else None
+
+    for name, r in results.items():
+        # a --no-infer run, or one stopped before its first timed round
+        inf = r.get('inference', {})
+        lat = inf.get('1', next(iter(inf.values()), {})).get('seconds', {})
+        fl = r.get('gflops', {})
+        tr = r.get('train_step', {})
+        lines.append(
+            f'| {name} | {r["params_m"]:.1f} | '
+            f'{_f(fl.get("predict"), "{:.1f}")} / '
+            f'{_f(fl.get("features"), "{:.1f}")} | '
+            f'{_f(lat.get("median"))} [{_f(lat.get("iqr"))}] | ' +
+            ' | '.join(_f(inf.get(str(b), {}).get('images_per_s'), '{:.2f}')
+                       for b in meta['batch_sizes']) +
+            f' | {_f(tr.get("seconds", {}).get("median"))} | '
+            f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
+            f'{_f(tr.get("peak_mib"), "{:.0f}")} | '
+            f'{_f(ratio(r, "lat"), "{:.2f}")} | '
+            f'{_f(ratio(r, "train"), "{:.2f}")} | '
+            f'{_f(ratio(r, "params"), "{:.2f}")} |')
+    if scaling['sizes']:
+        lines += ['', '| model | input | latency b1 (s) | peak mem (MiB) |',
+                  '|---|---|---|---|']
+        for name, rows in scaling['sizes'].items():
+            for row in rows:
+                lines.append(
+                    f'| {name} | {row["size"][0]}x{row["size"][1]} | '
+                    f'{row["seconds"]:.3f} | '
+                    f'{_f(row["peak_mib"], "{:.0f}")} |')
+    if scaling['items']:
+        lines += ['', '| model | instances / image | train step (s) | '
+                  'peak mem (MiB) |', '|---|---|---|---|']
+        for name, rows in scaling['items'].items():
+            for row in rows:
+                lines.append(
+                    f'| {name} | {row["num_items"]} | {row["seconds"]:.3f}'
+                    f' | {_f(row["peak_mib"], "{:.0f}")} |')
+    return '\n'.join(lines) + '\n'
+
+
+def plot(scaling, path):
+    """Latency vs input pixels and train step vs instances, one PNG."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for name, rows in scaling['sizes'].items():
+        axes[0].plot([r['size'][0] * r['size'][1] / 1e6 for r in rows],
+                     [r['seconds'] for r in rows], 'o-', label=name)
+    axes[0].set(xlabel='input (megapixels)', ylabel='latency b1 (s)',
+                title='inference vs input size')
+    for name, rows in scaling['items'].items():
+        axes[1].plot([r['num_items'] for r in rows],
+                     [r['seconds'] for r in rows], 'o-', label=name)
+    axes[1].set(xlabel='ground-truth instances / image',
+                ylabel='train step (s)', title='training vs instances')
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
