@@ -1,14 +1,16 @@
-"""A sample of the malformed-input sweep (tools/analysis_tools/
-fuzz_inputs.py): every mutation kind that once crashed or was silently
-lost, plus a few others, through dataset + pipeline + one training step,
-each with the outcome it must have (a clear error raised by our checks
-and naming the file, a drop logged per reason, or a normal training step;
-never silent, never a crash)."""
+"""A sample of the malformed-input sweep (cbnet_lab/fuzz_inputs.py, run
+by tools/analysis_tools/fuzz_inputs.py): every mutation kind that once
+crashed or was silently lost, plus a few others, through dataset +
+pipeline + one training step, each with the outcome it must have (a
+clear error raised by our checks and naming the file, a drop logged per
+reason, or a normal training step; never silent, never a crash)."""
 import json
 
 import pytest
 
 from tiny_configs import load_tool
+
+from cbnet_lab import fuzz_inputs
 
 #: Mutation -> its expected outcome. 'clear error': raised by the package's
 #: own checks (not a library error) and naming the mutated file.
@@ -54,12 +56,13 @@ EXPECTED = {
 
 
 def load_fuzz_tool():
+    """The command line (the sweep itself is cbnet_lab.fuzz_inputs)."""
     return load_tool('analysis_tools/fuzz_inputs.py')
 
 
 @pytest.mark.slow  # ~60 s on 2 cores (35 variants, ~11 training steps)
 def test_fuzz_sample_outcome_per_mutation(cityscapes_like_root, tmp_path):
-    fuzz = load_fuzz_tool()
+    fuzz = fuzz_inputs
     sample = sorted(EXPECTED)
     assert set(sample) <= set(fuzz.MUTATIONS)
     result = fuzz.sweep(cityscapes_like_root, len(sample), seed=0,
@@ -97,7 +100,7 @@ def test_audit_counts_unlogged_loss_and_changed_labels(cityscapes_like_root,
                                                        tmp_path):
     """What the sweep scores as 'silent': an annotation gone without a
     count, an image gone, a label changed."""
-    fuzz = load_fuzz_tool()
+    fuzz = fuzz_inputs
     ds, ann_file = _variant_dataset(fuzz, cityscapes_like_root, tmp_path,
                                     'area_zero')
     prefix = ds.data_prefix['img']
@@ -125,7 +128,7 @@ def test_classify_counts_only_our_errors_that_name_the_file(tmp_path):
     from mmengine.fileio import load
 
     from cbnet_mmdet.datasets import CBNetCityscapesDataset
-    classify = load_fuzz_tool().classify
+    classify = fuzz_inputs.classify
     missing = str(tmp_path / 'missing.json')
     with pytest.raises(FileNotFoundError) as library:
         load(missing)  # raised inside Python/mmengine, names the file

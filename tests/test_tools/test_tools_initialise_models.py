@@ -8,7 +8,6 @@ whose bias gradient alone exceeds the clip norm. The check: the stage-2
 objectness bias of the built model is the focal prior.
 """
 import glob
-import importlib.util
 import math
 import os.path as osp
 
@@ -22,22 +21,14 @@ DEMO = osp.join(ROOT, 'configs', 'demo',
 PRIOR_BIAS = -math.log((1 - 0.01) / 0.01)
 
 
-def load_tool(name):
-    path = osp.join(ROOT, 'tools', 'analysis_tools', f'{name}.py')
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def assert_focal_prior(rpn_head):
     bias = rpn_head.stages[1].rpn_cls.bias.detach()
     torch.testing.assert_close(bias, torch.full_like(bias, PRIOR_BIAS))
 
 
 def test_fuzz_inputs_initialises_the_demo_model(cityscapes_like_root):
-    tool = load_tool('fuzz_inputs')
-    model, _ = tool.build(cityscapes_like_root, (64, 32))
+    from cbnet_lab import fuzz_inputs
+    model, _ = fuzz_inputs.build(cityscapes_like_root, (64, 32))
     assert_focal_prior(model.rpn_head)
 
 
@@ -53,11 +44,14 @@ LOSSES_ONLY = {'tools/analysis_tools/benchmark_mask_loss.py'}
 
 
 @pytest.mark.parametrize(
-    'path', sorted(glob.glob(osp.join(ROOT, 'tools', '**', '*.py'),
-                             recursive=True)),
+    'path', sorted(
+        glob.glob(osp.join(ROOT, 'tools', '**', '*.py'), recursive=True) +
+        glob.glob(osp.join(ROOT, 'cbnet_lab', '**', '*.py'),
+                  recursive=True)),
     ids=lambda p: osp.relpath(p, ROOT))
 def test_no_tool_builds_a_model_without_initialising_it(path):
-    """A tool calling ``MODELS.build`` must also call ``init_weights()``
+    """A tool (or lab module) calling ``MODELS.build`` must also call
+    ``init_weights()``
     (tools that build through ``build_detector`` never call
     ``MODELS.build`` themselves), unless it builds losses only."""
     with open(path) as f:
