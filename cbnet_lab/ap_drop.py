@@ -22,6 +22,7 @@ from mmengine.config import Config
 from mmengine.runner import Runner
 
 from cbnet_mmdet.utils.checkpoint_fit import require_checkpoint_fit
+from cbnet_mmdet.utils.markdown import markdown_table
 
 from .metric_keys import columns
 
@@ -187,16 +188,11 @@ def drop_table(metrics: Dict[str, Dict[str, float]]) -> dict:
 def to_markdown(table: dict) -> str:
     """Markdown of :func:`drop_table`'s output (one decimal, '-' when
     missing)."""
-    cols = ['condition'] + table['columns']
-    lines = ['| ' + ' | '.join(cols) + ' |',
-             '|' + '---|' * len(cols)]
-    for row in table['rows']:
-        cells = [row['condition']] + [
-            '-' if row[c] is None else f'{row[c]:.1f}'
-            for c in table['columns']
-        ]
-        lines.append('| ' + ' | '.join(cells) + ' |')
-    return '\n'.join(lines)
+    return '\n'.join(markdown_table(
+        ['condition'] + table['columns'],
+        [[row['condition']] + ['-' if row[c] is None else f'{row[c]:.1f}'
+                               for c in table['columns']]
+         for row in table['rows']]))
 
 
 #: ``PackDetInputs``' default ``meta_keys`` (MMDet 3.x).

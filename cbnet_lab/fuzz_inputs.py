@@ -27,6 +27,7 @@ from pycocotools import mask as mask_utils
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
+from cbnet_mmdet.utils.markdown import markdown_table
 
 from .recipe_comparison import configs_root
 
@@ -624,12 +625,10 @@ def sweep(data_root: str, variants: int, seed: int, num_images: int,
 
 def markdown(result: dict) -> str:
     """One row per mutation and a total: tries and count per outcome."""
-    rows = ['| mutation | tried | ' + ' | '.join(OUTCOMES) + ' |',
-            '|---|---|' + '---|' * len(OUTCOMES)]
-    for name, c in sorted(result['per_mutation'].items()):
-        rows.append(f'| {name} | {sum(c.values())} | ' + ' | '.join(
-            str(c.get(k, 0)) for k in OUTCOMES) + ' |')
+    rows = [[name, sum(c.values())] + [c.get(k, 0) for k in OUTCOMES]
+            for name, c in sorted(result['per_mutation'].items())]
     o = result['outcomes']
-    rows.append(f'| **total** | {result["tried"]} | ' + ' | '.join(
-        str(o.get(k, 0)) for k in OUTCOMES) + ' |')
-    return '\n'.join(rows)
+    rows.append(['**total**', result['tried']] +
+                [o.get(k, 0) for k in OUTCOMES])
+    return '\n'.join(
+        markdown_table(['mutation', 'tried'] + list(OUTCOMES), rows))

@@ -14,6 +14,8 @@ import platform
 import sys
 from contextlib import nullcontext
 
+from cbnet_mmdet.utils.markdown import markdown_table
+
 #: how the inference RoI heads got their proposals, for the tables
 PROPOSALS = dict(
     fixed='one fixed, realistic proposal set for every model '
@@ -308,15 +310,7 @@ def markdown(meta, results, scaling):
             f'{name} {r["test_proposals"]}' for name, r in results.items()
             if 'test_proposals' in r)
     ] if any('test_proposals' in r for r in results.values()) else []) + [
-        '',
-        '| model | params (M) | GFLOPs infer / backbone+neck | latency b1 '
-        '(s, median [IQR]) | img/s ' +
-        ' | img/s '.join(f'b{b}' for b in meta['batch_sizes']) +
-        f' | train step b{meta.get("train_batch_size", 1)} (s) | peak mem '
-        'infer / train (MiB) '
-        '| latency / Swin-S | train / Swin-S | params / Swin-S |',
-        '|---|---|---|---|' + '---|' * len(meta['batch_sizes']) +
-        '---|---|---|---|---|'
+        ''
     ]
 
     def ratio(r, key):
@@ -332,42 +326,45 @@ def markdown(meta, results, scaling):
         a, b = get(r), get(ref)
         return a / b if a is not None and b else None
 
+    header = (['model', 'params (M)', 'GFLOPs infer / backbone+neck',
+               'latency b1 (s, median [IQR])'] +
+              [f'img/s b{b}' for b in meta['batch_sizes']] +
+              [f'train step b{meta.get("train_batch_size", 1)} (s)',
+               'peak mem infer / train (MiB)', 'latency / Swin-S',
+               'train / Swin-S', 'params / Swin-S'])
+    rows = []
     for name, r in results.items():
         # a --no-infer run, or one stopped before its first timed round
         inf = r.get('inference', {})
         lat = inf.get('1', next(iter(inf.values()), {})).get('seconds', {})
         fl = r.get('gflops', {})
         tr = r.get('train_step', {})
-        lines.append(
-            f'| {name} | {r["params_m"]:.1f} | '
-            f'{_f(fl.get("predict"), "{:.1f}")} / '
-            f'{_f(fl.get("features"), "{:.1f}")} | '
-            f'{_f(lat.get("median"))} [{_f(lat.get("iqr"))}] | ' +
-            ' | '.join(_f(inf.get(str(b), {}).get('images_per_s'), '{:.2f}')
-                       for b in meta['batch_sizes']) +
-            f' | {_f(tr.get("seconds", {}).get("median"))} | '
-            f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
-            f'{_f(tr.get("peak_mib"), "{:.0f}")} | '
-            f'{_f(ratio(r, "lat"), "{:.2f}")} | '
-            f'{_f(ratio(r, "train"), "{:.2f}")} | '
-            f'{_f(ratio(r, "params"), "{:.2f}")} |')
+        rows.append(
+            [name, f'{r["params_m"]:.1f}',
+             f'{_f(fl.get("predict"), "{:.1f}")} / '
+             f'{_f(fl.get("features"), "{:.1f}")}',
+             f'{_f(lat.get("median"))} [{_f(lat.get("iqr"))}]'] +
+            [_f(inf.get(str(b), {}).get('images_per_s'), '{:.2f}')
+             for b in meta['batch_sizes']] +
+            [_f(tr.get('seconds', {}).get('median')),
+             f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
+             f'{_f(tr.get("peak_mib"), "{:.0f}")}',
+             _f(ratio(r, 'lat'), '{:.2f}'), _f(ratio(r, 'train'), '{:.2f}'),
+             _f(ratio(r, 'params'), '{:.2f}')])
+    lines += markdown_table(header, rows)
     if scaling['sizes']:
-        lines += ['', '| model | input | latency b1 (s) | peak mem (MiB) |',
-                  '|---|---|---|---|']
-        for name, rows in scaling['sizes'].items():
-            for row in rows:
-                lines.append(
-                    f'| {name} | {row["size"][0]}x{row["size"][1]} | '
-                    f'{row["seconds"]:.3f} | '
-                    f'{_f(row["peak_mib"], "{:.0f}")} |')
+        lines += [''] + markdown_table(
+            ['model', 'input', 'latency b1 (s)', 'peak mem (MiB)'],
+            [[name, f'{row["size"][0]}x{row["size"][1]}',
+              f'{row["seconds"]:.3f}', _f(row['peak_mib'], '{:.0f}')]
+             for name, rows in scaling['sizes'].items() for row in rows])
     if scaling['items']:
-        lines += ['', '| model | instances / image | train step (s) | '
-                  'peak mem (MiB) |', '|---|---|---|---|']
-        for name, rows in scaling['items'].items():
-            for row in rows:
-                lines.append(
-                    f'| {name} | {row["num_items"]} | {row["seconds"]:.3f}'
-                    f' | {_f(row["peak_mib"], "{:.0f}")} |')
+        lines += [''] + markdown_table(
+            ['model', 'instances / image', 'train step (s)',
+             'peak mem (MiB)'],
+            [[name, row['num_items'], f'{row["seconds"]:.3f}',
+              _f(row['peak_mib'], '{:.0f}')]
+             for name, rows in scaling['items'].items() for row in rows])
     return '\n'.join(lines) + '\n'
 
 

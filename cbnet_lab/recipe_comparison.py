@@ -39,6 +39,7 @@ import numpy as np
 from mmengine.config import Config
 
 from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
+from cbnet_mmdet.utils.markdown import markdown_table
 
 from .ap_drop import ap_drop, test_condition
 from .metric_keys import columns as metric_columns
@@ -899,15 +900,15 @@ def to_markdown(summary: dict) -> str:
         heads = cols + ([f'{c} drop' for c in cols] if foggy
                         else ['train time (s)'])
         out.append(f'**{condition}**\n')
-        out.append('| recipe | ' + ' | '.join(heads) + ' |')
-        out.append('|---' * (len(heads) + 1) + '|')
+        rows = []
         for recipe in summary['recipes']:
             entry = summary['summary'][recipe]
             cells = [_cell(entry[condition].get(h)) for h in heads] \
                 if foggy else \
                 [_cell(entry[condition].get(h)) for h in cols] + \
                 [_cell(entry['train time (s)'])]
-            out.append(f'| {recipe} | ' + ' | '.join(cells) + ' |')
+            rows.append([recipe] + cells)
+        out += markdown_table(['recipe'] + heads, rows)
         out.append('')
     return '\n'.join(out)
 

@@ -33,6 +33,7 @@ from mmengine.config import Config
 
 from cbnet_mmdet.datasets.transforms.load_image_from_file import \
     MMCV_LOADER_TYPES
+from cbnet_mmdet.utils.markdown import markdown_table
 
 from .ap_drop import condition_cfg, evaluate_checkpoint
 from .metric_keys import columns
@@ -294,14 +295,12 @@ def to_markdown(summary: dict, label: str) -> str:
         ['mPC', 'rPC (%)']
     lines = [
         f'{label}: P = {pct(summary["P"])}, mPC = {pct(summary["mPC"])}, '
-        f'rPC = {pct(summary["rPC"])} %', '',
-        '| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)
-    ]
-    for corruption, row in summary['per_corruption'].items():
-        cells = [corruption] + [
-            pct(row['severities'].get(s)) for s in sevs
-        ] + [pct(row['mPC']), pct(row['rPC'])]
-        lines.append('| ' + ' | '.join(cells) + ' |')
+        f'rPC = {pct(summary["rPC"])} %', ''
+    ] + markdown_table(head, [
+        [corruption] + [pct(row['severities'].get(s)) for s in sevs] +
+        [pct(row['mPC']), pct(row['rPC'])]
+        for corruption, row in summary['per_corruption'].items()
+    ])
     return '\n'.join(lines)
 
 

@@ -20,6 +20,8 @@ from typing import Dict, Sequence
 
 import numpy as np
 
+from ..utils.markdown import markdown_table
+
 #: COCOeval's area ranges, pixels (``areaRng``: small, medium, large).
 COCO_AREAS = (('small', 0, 32**2), ('medium', 32**2, 96**2),
               ('large', 96**2, float('inf')))
@@ -132,15 +134,15 @@ def format_statistics(stats: dict, title: str) -> str:
         'regions', '',
         f'instances per image: mean {pi["mean"]:.2f}, median '
         f'{pi["median"]:g}, std {pi["std"]:.2f}, min {pi["min"]}, max '
-        f'{pi["max"]}', '', '| class | instances | fraction |',
-        '|---|---:|---:|'
-    ]
-    for name, count in stats['per_class'].items():
-        lines.append(f'| {name} | {count} | '
-                     f'{stats["per_class_fraction"][name]:.3f} |')
+        f'{pi["max"]}', ''
+    ] + markdown_table(
+        ['class', 'instances', 'fraction'],
+        [[name, count, f'{stats["per_class_fraction"][name]:.3f}']
+         for name, count in stats['per_class'].items()], align='lrr')
     for key, head in (('coco_area', 'COCO area range'),
                       ('area_hist', 'area (px)'),
                       ('rel_size_hist', 'sqrt(area / image area)')):
-        lines += ['', f'| {head} | fraction |', '|---|---:|']
-        lines += [f'| {k} | {v:.3f} |' for k, v in stats[key].items()]
+        lines += [''] + markdown_table(
+            [head, 'fraction'],
+            [[k, f'{v:.3f}'] for k, v in stats[key].items()], align='lr')
     return '\n'.join(lines) + '\n'

@@ -33,6 +33,7 @@ from typing import Dict, List, Optional, Sequence
 import numpy as np
 
 from cbnet_mmdet.datasets.cityscapes_paths import split_beta
+from cbnet_mmdet.utils.markdown import markdown_table
 
 from .router import RouterConfig, decide
 
@@ -343,7 +344,7 @@ def to_markdown(result: Dict) -> str:
             or k in result['rows'][0]]
     head = [h for _, h in keys[:2]] + [f'offloaded {c}' for c in conds] + \
         [h for _, h in keys[2:]]
-    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    rows = []
     for r in result['rows']:
         cells = [r['policy'], f"{r['offload_rate']:.0%}"]
         cells += [f"{r['offloaded'][c]:.0%}" for c in conds]
@@ -352,18 +353,19 @@ def to_markdown(result: Dict) -> str:
             if k in r.get('std', {}):
                 v += f" +- {r['std'][k]:.1f}"
             cells.append(v)
-        lines.append('| ' + ' | '.join(cells) + ' |')
-    lines += ['', '| condition | mean transmission | ' + ' | '.join(
-        f'{side} {h}' for side in ('local', 'server')
-        for k, h in keys[2:] if k != 'seconds') + ' |']
-    n = 2 + 2 * (len(keys) - 3)
-    lines.append('|' + '---|' * n)
+        rows.append(cells)
+    lines = markdown_table(head, rows) + ['']
+    rows = []
     for c in conds:
         cells = [c, f"{result['transmission'][c]:.3f}"]
         for side in ('local', 'server'):
             cells += [f"{result['by_condition'][c][side][k]:.1f}"
                       for k, _ in keys[2:] if k != 'seconds']
-        lines.append('| ' + ' | '.join(cells) + ' |')
+        rows.append(cells)
+    lines += markdown_table(
+        ['condition', 'mean transmission'] +
+        [f'{side} {h}' for side in ('local', 'server')
+         for k, h in keys[2:] if k != 'seconds'], rows)
     return '\n'.join(lines) + '\n'
 
 

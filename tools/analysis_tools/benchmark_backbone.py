@@ -34,6 +34,8 @@ import statistics
 import subprocess
 import sys
 
+from cbnet_mmdet.utils.markdown import markdown_table
+
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(
@@ -160,15 +162,14 @@ def main(argv=None):
         where = f'{args.device}, {torch.cuda.get_device_name(args.device)}'
     print(f'\nCBNetMiT forward, 1x3x{h}x{w}, {where}, '
           f'{results[0]["threads"]} threads, median of {args.runs}\n')
-    print('| arch | pos | params (M) | time (s) | peak fwd mem (MiB) '
-          '| time / ope | per-round time / ope | mem / ope |')
-    print('|---|---|---|---|---|---|---|---|')
-    for r in results:
-        ratio = ('- | - | -' if r['time_ratio'] is None else
-                 f'{r["time_ratio"]:.2f} | {r["round_time_ratio"]:.2f} | '
-                 f'{r["mem_ratio"]:.2f}')
-        print(f'| {r["arch"]} | {r["pos"]} | {r["params_m"]:.2f} | '
-              f'{r["time_s"]:.3f} | {r["peak_mib"]:.0f} | {ratio} |')
+    print('\n'.join(markdown_table(
+        ['arch', 'pos', 'params (M)', 'time (s)', 'peak fwd mem (MiB)',
+         'time / ope', 'per-round time / ope', 'mem / ope'],
+        [[r['arch'], r['pos'], f'{r["params_m"]:.2f}', f'{r["time_s"]:.3f}',
+          f'{r["peak_mib"]:.0f}'] +
+         (['-'] * 3 if r['time_ratio'] is None else
+          [f'{r["time_ratio"]:.2f}', f'{r["round_time_ratio"]:.2f}',
+           f'{r["mem_ratio"]:.2f}']) for r in results])))
     if args.out:
         os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
         with open(args.out, 'w') as f:

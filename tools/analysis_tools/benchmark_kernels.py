@@ -36,10 +36,11 @@ from typing import Callable, Dict, List
 
 import torch
 
+from cbnet_lab.benchmark import summarize, time_calls
 from cbnet_mmdet.models.layers.cbnet_deform_conv2d import \
     deform_conv2d as gather_deform_conv2d
 from cbnet_mmdet.models.losses import boundary_ops
-from cbnet_lab.benchmark import summarize, time_calls
+from cbnet_mmdet.utils.markdown import markdown_table
 
 STRIDES = (4, 8, 16, 32, 64)
 
@@ -176,7 +177,7 @@ def main(argv=None):
                        f'{batch}, ' + ('fwd+bwd' if grad else 'inference'))
             rows += rows_of('deform conv (CRPN stage 2, P2-P6)', setting,
                             interleaved(cases, args.repeats, device), 'mmcv')
-            print(markdown_table(rows[-len(ops):]), flush=True)
+            print(to_markdown(rows[-len(ops):]), flush=True)
     for rois in args.rois:
         inputs = loss_inputs(rois, device)
         cases = {
@@ -186,7 +187,7 @@ def main(argv=None):
         }
         rows += rows_of('boundary loss', f'{rois} RoIs 28x28, fwd+bwd',
                         interleaved(cases, args.repeats, device), 'autograd')
-        print(markdown_table(rows[-2:]), flush=True)
+        print(to_markdown(rows[-2:]), flush=True)
     machine = dict(device=device, torch=torch.__version__,
                    threads=torch.get_num_threads(), host=platform.node(),
                    cpu=platform.processor() or platform.machine())
@@ -198,18 +199,15 @@ def main(argv=None):
     with open(args.out, 'w') as f:
         json.dump(dict(machine=machine, repeats=args.repeats, rows=rows), f,
                   indent=1)
-    print(markdown_table(rows))
+    print(to_markdown(rows))
     print(f'machine: {machine}\nwritten: {args.out}')
 
 
-def markdown_table(rows: List[dict]) -> str:
-    head = ['kernel', 'setting', 'impl', 'median ms', 'IQR ms', 'x stock']
-    lines = ['| ' + ' | '.join(head) + ' |', '|' + ' --- |' * len(head)]
-    for r in rows:
-        lines.append(f"| {r['kernel']} | {r['setting']} | {r['impl']} | "
-                     f"{r['median_ms']:.2f} | {r['iqr_ms']:.2f} | "
-                     f"{r['vs_stock']:.2f} |")
-    return '\n'.join(lines)
+def to_markdown(rows: List[dict]) -> str:
+    return '\n'.join(markdown_table(
+        ['kernel', 'setting', 'impl', 'median ms', 'IQR ms', 'x stock'],
+        [[r['kernel'], r['setting'], r['impl'], f"{r['median_ms']:.2f}",
+          f"{r['iqr_ms']:.2f}", f"{r['vs_stock']:.2f}"] for r in rows]))
 
 
 def gather_deform_conv2d_3x3(x, off, w):

@@ -36,6 +36,7 @@ from mmdet.registry import MODELS
 from torch.profiler import ProfilerActivity, profile
 
 import cbnet_mmdet  # noqa: F401  (registers the loss)
+from cbnet_mmdet.utils.markdown import markdown_table
 
 LOSSES = {
     'bce': dict(type='CrossEntropyLoss', use_mask=True, loss_weight=1.0),
@@ -187,17 +188,13 @@ def main(argv=None):
           f'median of {args.repeats}; forward + backward ms (x BCE, '
           'best-run x BCE), forward ms (x BCE), peak MiB')
     names = list(LOSSES)
-    print('| RoIs | ' + ' | '.join(names) + ' |')
-    print('|---' * (1 + len(names)) + '|')
-    for r in rows:
-        cells = [
-            f"{r['time_ms'][n]:.2f} ({r['time_ratio_vs_bce'][n]:.2f}, "
-            f"{r['best_time_ratio_vs_bce'][n]:.2f}); "
-            f"fwd {r['forward_time_ms'][n]:.2f} "
-            f"({r['forward_time_ratio_vs_bce'][n]:.2f}); "
-            f"{r['peak_mem_mib'][n]:.1f} MiB" for n in names
-        ]
-        print(f"| {r['rois']} | " + ' | '.join(cells) + ' |')
+    print('\n'.join(markdown_table(['RoIs'] + names, [[r['rois']] + [
+        f"{r['time_ms'][n]:.2f} ({r['time_ratio_vs_bce'][n]:.2f}, "
+        f"{r['best_time_ratio_vs_bce'][n]:.2f}); "
+        f"fwd {r['forward_time_ms'][n]:.2f} "
+        f"({r['forward_time_ratio_vs_bce'][n]:.2f}); "
+        f"{r['peak_mem_mib'][n]:.1f} MiB" for n in names
+    ] for r in rows])))
     result = dict(
         device=args.device,
         threads=torch.get_num_threads(),

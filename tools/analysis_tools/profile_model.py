@@ -31,6 +31,8 @@ import sys
 import time
 from contextlib import nullcontext
 
+from cbnet_mmdet.utils.markdown import markdown_table
+
 
 #: the detector's top-level parts that get their own profiler range
 PARTS = ('backbone', 'neck', 'rpn_head', 'roi_head', 'bbox_head')
@@ -223,13 +225,11 @@ def markdown(meta, results):
             f'{min(t):.3f} s over {len(t)} call(s); profiled call '
             f'{res["profiled_wall_s"]:.3f} s', '',
             'Parts (inclusive CPU ms): ' + ', '.join(
-                f'{k} {v:.0f}' for k, v in res['parts_ms'].items()), '',
-            '| operator | calls | self CPU (ms) | share |', '|---|---|---|---|'
-        ]
-        lines += [
-            f'| `{o["name"]}` | {o["calls"]} | {o["self_ms"]:.1f} | '
-            f'{o["share"]:.1%} |' for o in res['top_ops']
-        ]
+                f'{k} {v:.0f}' for k, v in res['parts_ms'].items()), ''
+        ] + markdown_table(
+            ['operator', 'calls', 'self CPU (ms)', 'share'],
+            [[f'`{o["name"]}`', o['calls'], f'{o["self_ms"]:.1f}',
+              f'{o["share"]:.1%}'] for o in res['top_ops']])
         lines.append('')
     return '\n'.join(lines)
 

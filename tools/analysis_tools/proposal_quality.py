@@ -33,6 +33,7 @@ from mmengine.dataset import pseudo_collate
 from mmengine.registry import init_default_scope
 
 from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
+from cbnet_mmdet.utils.markdown import markdown_table
 
 RECALL_IOUS = (0.5, 0.7, 0.9)
 POSITIVE_IOUS = (0.5, 0.6, 0.7)
@@ -85,15 +86,13 @@ def to_markdown(results: dict) -> str:
     head = (['model', 'proposals / image'] +
             [f'recall@{t}' for t in RECALL_IOUS] + ['mean best IoU'] +
             [f'proposals IoU>={t}' for t in POSITIVE_IOUS])
-    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
-    for name, r in results.items():
-        cells = ([name, f"{r['proposals_per_image']:.0f}"] +
-                 [f"{r['recall'][str(t)]:.3f}" for t in RECALL_IOUS] +
-                 [f"{r['mean_best_iou']:.3f}"] +
-                 [f"{r['positive_share'][str(t)]:.3f}"
-                  for t in POSITIVE_IOUS])
-        lines.append('| ' + ' | '.join(cells) + ' |')
-    return '\n'.join(lines)
+    return '\n'.join(markdown_table(head, [
+        [name, f"{r['proposals_per_image']:.0f}"] +
+        [f"{r['recall'][str(t)]:.3f}" for t in RECALL_IOUS] +
+        [f"{r['mean_best_iou']:.3f}"] +
+        [f"{r['positive_share'][str(t)]:.3f}" for t in POSITIVE_IOUS]
+        for name, r in results.items()
+    ]))
 
 
 def parse_args(argv=None):

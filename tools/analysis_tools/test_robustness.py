@@ -42,6 +42,7 @@ from cbnet_lab.robustness import (SUMMARY_METRICS,
                                   plot_fog_density,
                                   run_benchmark, summarize,
                                   to_markdown)
+from cbnet_mmdet.utils.markdown import markdown_table
 
 
 def parse_args(argv=None):
@@ -97,15 +98,12 @@ def main(argv=None):
             report['summaries'][label] = summary
             tables.append(to_markdown(summary, label))
     if run['betas']:
-        lines = ['| beta (1/m) | ' + ' | '.join(
-            label for label, _ in SUMMARY_METRICS) + ' |',
-                 '|---|' + '---|' * len(SUMMARY_METRICS)]
-        for beta, metrics in sorted(run['betas'].items()):
-            cells = [
+        lines = markdown_table(
+            ['beta (1/m)'] + [label for label, _ in SUMMARY_METRICS],
+            [[f'{beta:g}'] + [
                 '-' if metrics.get(key, -1) < 0 else
                 f'{100 * metrics[key]:.1f}' for _, key in SUMMARY_METRICS
-            ]
-            lines.append(f'| {beta:g} | ' + ' | '.join(cells) + ' |')
+            ] for beta, metrics in sorted(run['betas'].items())])
         tables.append('Foggy Cityscapes (0: clear)\n\n' + '\n'.join(lines))
     markdown = '\n\n'.join(tables)
     print(markdown)

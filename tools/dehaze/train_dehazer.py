@@ -30,6 +30,7 @@ from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
+from cbnet_mmdet.utils.markdown import markdown_table
 
 
 def parse_args(argv=None):
@@ -154,15 +155,15 @@ def to_markdown(metrics: dict) -> str:
     """Table: beta | PSNR hazy | PSNR dehazed | SSIM hazy | SSIM dehazed."""
     betas = sorted({k.split('/')[1][len('beta_'):] for k in metrics
                     if k.startswith('dehaze/beta_')}, key=float)
-    lines = ['| beta | images | PSNR hazy (dB) | PSNR dehazed (dB) | '
-             'SSIM hazy | SSIM dehazed |', '|---|---|---|---|---|---|']
+    rows = []
     for b in betas:
         g = lambda k: metrics[f'dehaze/beta_{b}/{k}']  # noqa: E731
-        lines.append(f"| {b} | {int(g('num'))} | "
-                     f'{g("psnr_hazy"):.2f} | '
-                     f'{g("psnr"):.2f} | {g("ssim_hazy"):.3f} | '
-                     f'{g("ssim"):.3f} |')
-    return '\n'.join(lines)
+        rows.append([b, int(g('num')), f'{g("psnr_hazy"):.2f}',
+                     f'{g("psnr"):.2f}', f'{g("ssim_hazy"):.3f}',
+                     f'{g("ssim"):.3f}'])
+    return '\n'.join(markdown_table(
+        ['beta', 'images', 'PSNR hazy (dB)', 'PSNR dehazed (dB)',
+         'SSIM hazy', 'SSIM dehazed'], rows))
 
 
 def main(argv=None) -> dict:
