@@ -26,7 +26,7 @@ import hashlib
 import os
 import os.path as osp
 import pickle
-from typing import List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import torch
 from mmengine.config import Config
@@ -82,6 +82,17 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
     if not isinstance(checkpoint, dict):
         raise ValueError(f'{path} holds a {type(checkpoint).__name__}, not '
                          f'a checkpoint dict')
+    return checkpoint
+
+
+def unwrap_state_dict(checkpoint: Dict) -> Dict[str, torch.Tensor]:
+    """The weights of a checkpoint dict (``state_dict``/``model``/itself)."""
+    if not isinstance(checkpoint, dict):
+        raise TypeError('expected a checkpoint dict, got '
+                        f'{type(checkpoint).__name__}')
+    for key in ('state_dict', 'model'):
+        if isinstance(checkpoint.get(key), dict):
+            return checkpoint[key]
     return checkpoint
 
 

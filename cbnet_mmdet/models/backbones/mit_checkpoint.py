@@ -25,19 +25,10 @@ from typing import Dict, List, Tuple
 from mmdet.models.backbones.pvt import pvt_convert
 from torch import Tensor
 
+from ...utils.checkpoint_tools import unwrap_state_dict
+
 #: Prefixes of official-layout keys that have no counterpart in a backbone.
 OFFICIAL_NON_BACKBONE = ('head.', 'norm.', 'cls_token')
-
-
-def unwrap_state_dict(checkpoint: Dict) -> Dict[str, Tensor]:
-    """The weights of a checkpoint dict (``state_dict``/``model``/itself)."""
-    if not isinstance(checkpoint, dict):
-        raise TypeError('expected a checkpoint dict, got '
-                        f'{type(checkpoint).__name__}')
-    for key in ('state_dict', 'model'):
-        if isinstance(checkpoint.get(key), dict):
-            return checkpoint[key]
-    return checkpoint
 
 
 def detect_mit_layout(state_dict: Dict[str, Tensor]) -> str:

@@ -1,11 +1,11 @@
 """Load a dehazer's weights on their own, saying what did not load."""
 from typing import Dict, List, Optional
 
-import torch
 from mmengine.logging import MMLogger
 from torch import nn
 
 from ...utils.checkpoint_fit import compare_state_dicts, listed
+from ...utils.checkpoint_tools import read_checkpoint, unwrap_state_dict
 
 #: Where a dehazer's weights sit inside the checkpoints this package
 #: writes: the dehazer training model (``dehazer.``), a detector with a
@@ -45,9 +45,10 @@ def load_dehazer_checkpoint(dehazer: nn.Module,
 
     The file may be an MMEngine checkpoint of the dehazer training model
     (``tools/dehaze/train_dehazer.py``), of a detector with a dehazing data
-    preprocessor, or a bare state dict. It is read with
-    ``torch.load(weights_only=True)`` (the package's allow-list covers
-    MMEngine's metadata). Tensors whose name and shape fit are copied.
+    preprocessor, or a bare state dict. It is read by
+    :func:`~cbnet_mmdet.utils.checkpoint_tools.read_checkpoint`
+    (``torch.load(weights_only=True)`` with the package's allow-list,
+    errors naming the file). Tensors whose name and shape fit are copied.
 
     Args:
         dehazer (nn.Module): The built dehazer.
@@ -64,19 +65,14 @@ def load_dehazer_checkpoint(dehazer: nn.Module,
 
     Raises:
         FileNotFoundError: ``filename`` does not exist.
+        ValueError: it is empty, damaged or not a checkpoint.
         RuntimeError: ``strict`` and the checkpoint does not fit, or no
             tensor fits at all; the message lists what did not load.
     """
     logger = logger or MMLogger.get_current_instance()
-    try:
-        ckpt = torch.load(filename, map_location='cpu', weights_only=True)
-    except FileNotFoundError:
-        raise FileNotFoundError(
-            f'dehazer checkpoint not found: {filename}') from None
-    state = ckpt.get('state_dict', ckpt) if isinstance(ckpt, dict) else None
-    if not isinstance(state, dict):
-        raise RuntimeError(f'{filename} holds no state dict '
-                           f'(got {type(ckpt).__name__})')
+    # checked, weights-only reading with the package's allow-list: a
+    # missing, empty, damaged or non-checkpoint file is named in the error
+    state = unwrap_state_dict(read_checkpoint(filename))
     model_state = dehazer.state_dict()
     state = extract_dehazer_state(state, model_state)
     report = compare_state_dicts(model_state, state)

@@ -77,3 +77,16 @@ def test_other_model_and_missing_file(tmp_path):
         load_dehazer_checkpoint(dehazer(0), str(path), strict=False)
     with pytest.raises(FileNotFoundError, match='nowhere.pth'):
         load_dehazer_checkpoint(dehazer(0), str(tmp_path / 'nowhere.pth'))
+
+
+def test_a_file_that_is_no_checkpoint_is_named(tmp_path):
+    """Read through the package's checked reader: a text file or an empty
+    one gives an error naming it, not torch's unpickling message."""
+    text = tmp_path / 'notes.pth'
+    text.write_text('not a checkpoint\n')
+    with pytest.raises(ValueError, match='notes.pth'):
+        load_dehazer_checkpoint(dehazer(0), str(text))
+    empty = tmp_path / 'empty.pth'
+    empty.write_bytes(b'')
+    with pytest.raises(ValueError, match='empty.pth.*empty'):
+        load_dehazer_checkpoint(dehazer(0), str(empty))
