@@ -144,6 +144,9 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'crpn-reg1_1xb4-demo_cityscapes-like.py'),
         ('CBNet, CRPN reg 1', 'demo/parts/cbnet_mit-b0_nasfpn-crpn-reg1_'
          '1xb4-demo_cityscapes-like.py'),
+        # the revised recipe with MMDet's RPNHead instead of the Cascade RPN
+        ('CBNet revised -CRPN', 'demo/parts/cbnet_mit-b0_nasfpn-mask-per-'
+         'stage-softmax-cls-rpn_1xb4-demo_cityscapes-like.py'),
     ],
     # issue 24, real fog (DAWN, RTTS or any VOC folder as --data-root):
     # box-only recipes trained on its train split, tested on its val split;

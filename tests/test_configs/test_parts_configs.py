@@ -130,6 +130,20 @@ def test_the_parts_set_lists_every_swap_once():
     assert STOCK in paths and CBNET in paths
 
 
+def test_revised_without_crpn_swaps_only_the_rpn():
+    """'CBNet revised -CRPN' is the revised recipe with the stock cascade's
+    RPN part, whole, and nothing else changed."""
+    revised = model_of(osp.join(DEMO, 'cbnet-revised_mit-b0_nasfpn_1xb4-'
+                                'demo_cityscapes-like.py'))
+    row = model_of(osp.join(PARTS, 'cbnet_mit-b0_nasfpn-mask-per-stage-'
+                            'softmax-cls-rpn_1xb4-demo_cityscapes-like.py'))
+    stock = model_of(STOCK)
+    changed = diff(revised, row)
+    assert changed and {p for k in changed for p in owner(k)} == {'rpn'}
+    for key in {k for k in set(stock) | set(row) if 'rpn' in owner(k)}:
+        assert row.get(key, '<absent>') == stock.get(key, '<absent>'), key
+
+
 REVISED = [
     (CBNET, osp.join(DEMO, 'cbnet-revised_mit-b0_nasfpn_1xb4-demo_'
                      'cityscapes-like.py')),
