@@ -8,9 +8,4 @@ _base_ = [
     './cbnet_mit-b0_nasfpn-mask-per-stage-softmax-cls-crpn-reg1_1xb4-demo_'
     'cityscapes-like.py',
 ]
-model = dict(
-    rpn_head=dict(_delete_=True, **_base_.stock_rpn_head),
-    train_cfg=dict(
-        rpn=dict(_delete_=True, **_base_.stock_rpn_train_cfg),
-        rpn_proposal=dict(nms=_base_.stock_rpn_nms)),
-    test_cfg=dict(rpn=dict(nms=_base_.stock_rpn_nms)))
+model = _base_.stock_rpn_in_cbnet

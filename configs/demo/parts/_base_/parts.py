@@ -82,6 +82,14 @@ stock_rpn_train_cfg = dict(
     pos_weight=-1,
     debug=False)
 stock_rpn_nms = dict(type='nms', iou_threshold=0.7)
+# the model delta that puts that RPN (head, training settings, NMS) in
+# place of a CBNet's Cascade RPN, whose base train_cfg.rpn is None
+stock_rpn_in_cbnet = dict(
+    rpn_head=dict(_delete_=True, **stock_rpn_head),
+    train_cfg=dict(
+        rpn=dict(_delete_=True, **stock_rpn_train_cfg),
+        rpn_proposal=dict(nms=stock_rpn_nms)),
+    test_cfg=dict(rpn=dict(nms=stock_rpn_nms)))
 
 # 4. the IoU thresholds of the three box stages (paper II.C.1; MMDet's)
 cbnet_stage_ious = (0.5, 0.7, 0.9)
