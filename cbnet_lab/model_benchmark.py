@@ -351,7 +351,9 @@ def markdown(meta, results, scaling):
              f'{_f(tr.get("peak_mib"), "{:.0f}")}',
              _f(ratio(r, 'lat'), '{:.2f}'), _f(ratio(r, 'train'), '{:.2f}'),
              _f(ratio(r, 'params'), '{:.2f}')])
-    lines += markdown_table(header, rows)
+    # a scaling-only run (--no-infer --no-train) has no row to show here
+    if any('inference' in r or 'train_step' in r for r in results.values()):
+        lines += markdown_table(header, rows)
     if scaling['sizes']:
         lines += [''] + markdown_table(
             ['model', 'input', 'latency b1 (s)', 'peak mem (MiB)'],

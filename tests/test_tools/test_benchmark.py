@@ -377,3 +377,16 @@ def test_test_time_proposal_count_is_recorded(tmp_path):
     # a single-stage model has no proposals: no such line
     assert 'proposals per image at test time' not in (
         tmp_path / 'single' / 'benchmark.md').read_text()
+
+
+def test_scaling_only_run_prints_no_empty_model_table(tmp_path):
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    bench_script.main([
+        '--models', 'yolox_s', '--size', '32', '32', '--repeats', '1',
+        '--warmup', '0', '--no-flops', '--no-infer', '--no-train',
+        '--scale-models', 'yolox_s', '--scale-sizes', '32x32',
+        '--scale-items', '--threads', '1', '--out-dir', str(tmp_path)
+    ])
+    text = (tmp_path / 'benchmark.md').read_text()
+    assert 'params (M)' not in text
+    assert '| yolox_s | 32x32 |' in text
