@@ -262,7 +262,7 @@ def _f(v, fmt='{:.3f}'):
     return '-' if v is None else fmt.format(v)
 
 
-def _peak_memory_method(device):
+def peak_memory_method(device):
     """How :class:`PeakMemory` measures on ``device``, in words."""
     from cbnet_lab.benchmark import hwm_reset_works
     if str(device).startswith('cuda'):

@@ -12,7 +12,7 @@
 _base_ = [
     'mmdet::_base_/models/cascade-mask-rcnn_r50_fpn.py',
     '../_base_/datasets/cityscapes_instance.py',
-    'mmdet::_base_/schedules/schedule_1x.py',
+    '../_base_/schedules/schedule_cityscapes_8e.py',
     'mmdet::_base_/default_runtime.py'
 ]
 # checkpoints that torch.load's default weights_only reads without
@@ -70,22 +70,7 @@ model = dict(
         ],
         mask_head=dict(num_classes=num_classes)))
 
-# ---- schedule: MMDet's Cityscapes timing, Swin's optimiser ----
-max_epochs = 8
-train_cfg = dict(max_epochs=max_epochs)
-param_scheduler = [
-    dict(
-        type='LinearLR', start_factor=0.001, by_epoch=False, begin=0,
-        end=500),
-    # MMDet's Cityscapes configs: "[7] yields higher performance than [6]"
-    dict(
-        type='MultiStepLR',
-        begin=0,
-        end=max_epochs,
-        by_epoch=True,
-        milestones=[7],
-        gamma=0.1)
-]
+# ---- optimiser: Swin's (MMDet's Cityscapes timing comes with the base) ----
 optim_wrapper = dict(
     # no weight decay on position tables and norms (Swin's recipe)
     paramwise_cfg=dict(

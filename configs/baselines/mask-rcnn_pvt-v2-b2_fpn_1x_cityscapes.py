@@ -9,13 +9,13 @@
 # (MMDet publishes no Mask R-CNN PVTv2 checkpoint): the backbone starts from
 # ImageNet-1k, the neck and heads from scratch; (2) AdamW as PVT's recipe;
 # (3) our dataset type/loader and evaluators (COCO bbox+segm AP and mIoU).
-# Bases: MMDet's Mask R-CNN model, our 8-class Cityscapes data, MMDet's
-# runtime; the rest of `mmdet::cityscapes/mask-rcnn_r50_fpn_1x_cityscapes.py`
-# (8 classes, its schedule) is restated below.
+# Bases: MMDet's Mask R-CNN model, our 8-class Cityscapes data and
+# MMDet's Cityscapes schedule, MMDet's runtime; the 8 classes of
+# `mmdet::cityscapes/mask-rcnn_r50_fpn_1x_cityscapes.py` are restated below.
 _base_ = [
     'mmdet::_base_/models/mask-rcnn_r50_fpn.py',
     '../_base_/datasets/cityscapes_instance.py',
-    'mmdet::_base_/schedules/schedule_1x.py',
+    '../_base_/schedules/schedule_cityscapes_8e.py',
     'mmdet::_base_/default_runtime.py'
 ]
 # checkpoints that torch.load's default weights_only reads without
@@ -41,22 +41,6 @@ model = dict(
             num_classes=8,
             loss_bbox=dict(type='SmoothL1Loss', beta=1.0, loss_weight=1.0)),
         mask_head=dict(num_classes=8)))
-
-# MMDet's Cityscapes schedule: 8 epochs of the x8 repeated set, lr step
-# after epoch 7 ("[7] yields higher performance than [6]")
-train_cfg = dict(max_epochs=8)
-param_scheduler = [
-    dict(
-        type='LinearLR', start_factor=0.001, by_epoch=False, begin=0,
-        end=500),
-    dict(
-        type='MultiStepLR',
-        begin=0,
-        end=8,
-        by_epoch=True,
-        milestones=[7],
-        gamma=0.1)
-]
 
 # PVT's detection recipe: AdamW, lr 1e-4, weight decay 1e-4 (there for a
 # batch of 16; kept for the Cityscapes batch of 8 x 1)

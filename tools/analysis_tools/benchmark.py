@@ -56,8 +56,9 @@ import sys
 import time
 from datetime import datetime, timezone
 
-from cbnet_lab.model_benchmark import (REFERENCE, _peak_memory_method,
-                                       load_average, machine, markdown, plot)
+from cbnet_lab import model_benchmark
+from cbnet_lab.model_benchmark import (REFERENCE, load_average, machine,
+                                       markdown, peak_memory_method, plot)
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -171,7 +172,6 @@ def parse_args(argv=None):
 def run(args, checkpoint=lambda results, scaling: None):
     """:func:`cbnet_lab.model_benchmark.run`, config paths relative to the
     repository."""
-    from cbnet_lab import model_benchmark
     return model_benchmark.run(args, checkpoint, root=ROOT)
 
 
@@ -201,7 +201,7 @@ def main(argv=None):
             'python tools/analysis_tools/benchmark.py ' +
             ' '.join(sys.argv[1:] if argv is None else argv),
             wall_s=time.time() - start,
-            peak_memory=_peak_memory_method(args.device), partial=partial)
+            peak_memory=peak_memory_method(args.device), partial=partial)
         os.makedirs(args.out_dir, exist_ok=True)
         text = markdown(meta, results, scaling)
         with open(osp.join(args.out_dir, 'benchmark.json'), 'w') as f:
