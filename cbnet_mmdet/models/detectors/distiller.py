@@ -1,7 +1,6 @@
 """Clear-to-foggy teacher-EMA distillation (CBNet-DD, paper section II.E)."""
-import inspect
-from contextlib import contextmanager
-from typing import Iterator, List, Tuple
+import copy
+from typing import Tuple
 
 import torch
 from mmdet.models.detectors import SemiBaseDetector
@@ -11,48 +10,11 @@ from mmdet.structures.bbox import bbox2roi
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from torch import Tensor
 
+from ..roi_heads.roi_head_losses import (mask_record_losses_of,
+                                         roi_losses_with_mask_record)
 from .paired_data_preprocessor import IMG_CHANNELS
 
 EVAL_MODELS = ('student', 'teacher')
-
-
-@contextmanager
-def record_mask_loss(roi_head) -> Iterator[List[Tuple[dict, dict]]]:
-    """Record the arguments and results of ``roi_head.mask_loss`` calls.
-
-    The RoIs a head trains its mask branch on (its positive sampled
-    proposals) only exist inside ``roi_head.loss``. Rather than re-implement
-    every head's ``loss``, we wrap its ``mask_loss`` for the duration of one
-    forward: MMDetection's ``StandardRoIHead.mask_loss(x, sampling_results,
-    bbox_feats, batch_gt_instances)`` and ``CascadeRoIHead.mask_loss(stage,
-    x, sampling_results, batch_gt_instances)`` both receive the sampling
-    results and return the mask logits they computed.
-
-    Args:
-        roi_head (nn.Module): An RoI head with a ``mask_loss`` method.
-
-    Yields:
-        list[tuple[dict, dict]]: Filled with ``(arguments by name, returned
-        dict)`` for each call, in call order.
-    """
-    original = roi_head.mask_loss
-    had_instance_attr = 'mask_loss' in vars(roi_head)
-    signature = inspect.signature(original)
-    records = []
-
-    def recording_mask_loss(*args, **kwargs):
-        results = original(*args, **kwargs)
-        records.append((signature.bind(*args, **kwargs).arguments, results))
-        return results
-
-    roi_head.mask_loss = recording_mask_loss
-    try:
-        yield records
-    finally:
-        if had_instance_attr:
-            roi_head.mask_loss = original
-        else:
-            del roi_head.mask_loss
 
 
 def select_label_channel(mask_logits: Tensor, labels: Tensor) -> Tensor:
@@ -82,8 +44,11 @@ class CBNetDistiller(SemiBaseDetector):
     ``CBNetPairedFoggyDataset`` + ``CBNetLoadPairedImageFromFile`` and
     ``CBNetPairedDataPreprocessor``. One training step:
 
-    1. the student computes its usual supervised losses on the foggy image;
-       its last mask-head call (the last stage of a cascade) is recorded;
+    1. the student computes its usual supervised losses on the foggy
+       image, its parts called one by one as ``TwoStageDetector.loss``
+       does (features, RPN, then the RoI head through
+       :func:`roi_losses_with_mask_record`, which also returns the RoIs and
+       logits of its last mask-head call: the last stage of a cascade);
     2. the teacher (no gradients, eval mode) extracts features from the
        clear image and runs its mask head on the SAME RoIs: the student's
        positive sampled RoIs of that stage;
@@ -103,7 +68,9 @@ class CBNetDistiller(SemiBaseDetector):
     Args:
         detector (:obj:`ConfigDict` or dict): Config of the student; any
             MMDetection two-stage detector whose ``roi_head`` has a mask
-            head (``StandardRoIHead``, ``CascadeRoIHead`` and subclasses).
+            head: ``StandardRoIHead``, ``CascadeRoIHead`` (or a subclass
+            keeping their ``loss``) or a head with ``loss_with_mask_record``
+            (``CBNetCascadeRoIHead``); another raises ``TypeError``.
         distill_loss (:obj:`ConfigDict` or dict): Distillation loss on
             mask logits, ``loss(student Tensor[N, h, w], teacher Tensor[N,
             h, w])``. Defaults to ``CBNetDistillLoss`` with weight 1.
@@ -134,6 +101,13 @@ class CBNetDistiller(SemiBaseDetector):
                 f'CBNetDistiller: the student ({type(self.student).__name__}'
                 f') has no mask head; distillation needs `roi_head` with a '
                 f'`mask_head`')
+        if mask_record_losses_of(self.student.roi_head) is None:
+            raise TypeError(
+                f'CBNetDistiller: the student\'s RoI head '
+                f'({type(self.student.roi_head).__name__}) is not a '
+                f'StandardRoIHead / CascadeRoIHead with their loss and has '
+                f'no loss_with_mask_record, so the RoIs and logits of its '
+                f'mask head cannot be read for distillation')
         self.distill_loss = MODELS.build(distill_loss)
         self.eval_with = eval_with
 
@@ -196,30 +170,53 @@ class CBNetDistiller(SemiBaseDetector):
             dict[str, Tensor]: The student's losses and ``loss_distill``.
         """
         foggy, clear = self.split_paired(batch_inputs)
-        roi_head = self.student.roi_head
-        with record_mask_loss(roi_head) as records:
-            losses = self.student.loss(foggy, batch_data_samples)
-        if not records:
+        student = self.student
+        x = student.extract_feat(foggy)
+        losses, rpn_results_list = self.student_rpn_losses(
+            x, batch_data_samples)
+        roi_losses, record = roi_losses_with_mask_record(
+            student.roi_head, x, rpn_results_list, batch_data_samples)
+        losses.update(roi_losses)
+        if record is None:
             raise RuntimeError(
-                f'CBNetDistiller: {type(roi_head).__name__}.loss never '
-                f'called mask_loss, so there are no mask logits to distil')
-        arguments, mask_results = records[-1]
-        sampling_results = arguments['sampling_results']
-        rois = bbox2roi([res.pos_priors for res in sampling_results])
-        labels = torch.cat([res.pos_gt_labels for res in sampling_results])
+                f'CBNetDistiller: {type(student.roi_head).__name__} ran no '
+                f'mask loss (no proposal reached a mask stage), so there '
+                f'are no mask logits to distil')
+        rois = bbox2roi([res.pos_priors for res in record.sampling_results])
+        labels = torch.cat(
+            [res.pos_gt_labels for res in record.sampling_results])
         with torch.no_grad():
             teacher_feats = self.teacher.extract_feat(clear)
-            teacher_head = self.teacher.roi_head
-            if 'stage' in arguments:
-                teacher_results = teacher_head._mask_forward(
-                    arguments['stage'], teacher_feats, rois)
-            else:
-                teacher_results = teacher_head._mask_forward(
-                    teacher_feats, rois)
+            mask_forward = self.teacher.roi_head._mask_forward
+            teacher_results = mask_forward(teacher_feats, rois) \
+                if record.stage is None \
+                else mask_forward(record.stage, teacher_feats, rois)
         losses['loss_distill'] = self.distill_loss(
-            select_label_channel(mask_results['mask_preds'], labels),
+            select_label_channel(record.mask_results['mask_preds'], labels),
             select_label_channel(teacher_results['mask_preds'], labels))
         return losses
+
+    def student_rpn_losses(self, x: Tuple[Tensor],
+                           batch_data_samples: SampleList
+                           ) -> Tuple[dict, list]:
+        """The student's RPN losses and proposals, as
+        ``TwoStageDetector.loss`` computes them (class-agnostic targets,
+        ``train_cfg.rpn_proposal``; ``rpn_``-prefixed names), or the
+        samples' precomputed ``proposals`` for a detector without RPN."""
+        student = self.student
+        if not student.with_rpn:
+            return dict(), [s.proposals for s in batch_data_samples]
+        proposal_cfg = student.train_cfg.get('rpn_proposal',
+                                             student.test_cfg.rpn)
+        rpn_data_samples = copy.deepcopy(batch_data_samples)
+        for sample in rpn_data_samples:
+            sample.gt_instances.labels = torch.zeros_like(
+                sample.gt_instances.labels)
+        rpn_losses, rpn_results_list = student.rpn_head.loss_and_predict(
+            x, rpn_data_samples, proposal_cfg=proposal_cfg)
+        losses = {(f'rpn_{k}' if 'loss' in k and 'rpn' not in k else k): v
+                  for k, v in rpn_losses.items()}
+        return losses, rpn_results_list
 
     def predict(self,
                 batch_inputs: Tensor,

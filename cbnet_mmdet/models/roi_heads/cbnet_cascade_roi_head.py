@@ -1,15 +1,17 @@
 """Cascade RoI head whose mask head runs on the last stage only."""
-from typing import List, Tuple
+from typing import List, Optional, Tuple
 
 import torch
 from mmdet.models.roi_heads import CascadeRoIHead
 from mmdet.models.task_modules.samplers import SamplingResult
-from mmdet.models.utils import empty_instances, unpack_gt_instances
+from mmdet.models.utils import empty_instances
 from mmdet.registry import MODELS
 from mmdet.structures import SampleList
 from mmdet.structures.bbox import bbox2roi
 from mmdet.utils import ConfigType, InstanceList, OptConfigType
 from torch import Tensor
+
+from .roi_head_losses import MaskLossRecord, cascade_roi_losses
 
 
 @MODELS.register_module()
@@ -111,10 +113,10 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
              batch_data_samples: SampleList) -> dict:
         """Box losses of every stage and the last stage's mask losses.
 
-        MMDet's cascade loop (:meth:`CascadeRoIHead.loss`: assign and
-        sample each stage's proposals, :meth:`bbox_loss` weighted by
-        ``stage_loss_weights[stage]``, refine the boxes for the next stage)
-        written out with its parts, so that the mask losses of the last
+        MMDet's cascade loop (assign and sample each stage's proposals,
+        :meth:`bbox_loss` weighted by ``stage_loss_weights[stage]``, refine
+        the boxes for the next stage), written out with its parts in
+        :func:`cascade_roi_losses`, so that the mask losses of the last
         stage are added at their configured weight, outside the stage
         weight (see the class doc), and no mask forward runs before it.
 
@@ -128,57 +130,23 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
             ``s{i}.acc`` and ``s{num_stages - 1}.loss_mask`` (and
             ``.loss_edge``).
         """
-        assert len(rpn_results_list) == len(batch_data_samples)
-        batch_gt_instances, batch_gt_instances_ignore, batch_img_metas = \
-            unpack_gt_instances(batch_data_samples)
-        losses = dict()
-        results_list = rpn_results_list
-        last = self.num_stages - 1
-        for stage in range(self.num_stages):
-            self.current_stage = stage
-            sampling_results = self._sample(stage, x, results_list,
-                                            batch_gt_instances,
-                                            batch_gt_instances_ignore)
-            bbox_results = self.bbox_loss(stage, x, sampling_results)
-            weight = self.stage_loss_weights[stage]
-            for name, value in bbox_results['loss_bbox'].items():
-                losses[f's{stage}.{name}'] = (
-                    value * weight if 'loss' in name else value)
-            if stage == last:
-                if self.with_mask:
-                    mask_results = self.mask_loss(stage, x,
-                                                  sampling_results,
-                                                  batch_gt_instances)
-                    losses.update({
-                        f's{stage}.{name}': value
-                        for name, value in mask_results['loss_mask'].items()
-                    })
-                break
-            with torch.no_grad():
-                results_list = self.bbox_head[stage].refine_bboxes(
-                    sampling_results, bbox_results, batch_img_metas)
-            if results_list is None:  # no proposal left
-                break
-        return losses
+        return self.loss_with_mask_record(x, rpn_results_list,
+                                          batch_data_samples)[0]
 
-    def _sample(self, stage: int, x: Tuple[Tensor],
-                results_list: InstanceList, batch_gt_instances: InstanceList,
-                batch_gt_instances_ignore: InstanceList
-                ) -> List[SamplingResult]:
-        """Assign and sample one stage's proposals per image, as MMDet's
-        cascade does (the proposals' ``bboxes`` become ``priors``)."""
-        assigner = self.bbox_assigner[stage]
-        sampler = self.bbox_sampler[stage]
-        sampling_results = []
-        for i, results in enumerate(results_list):
-            results.priors = results.pop('bboxes')
-            assign_result = assigner.assign(results, batch_gt_instances[i],
-                                            batch_gt_instances_ignore[i])
-            sampling_results.append(
-                sampler.sample(assign_result, results,
-                               batch_gt_instances[i],
-                               feats=[lvl[i][None] for lvl in x]))
-        return sampling_results
+    def loss_with_mask_record(self, x: Tuple[Tensor],
+                              rpn_results_list: InstanceList,
+                              batch_data_samples: SampleList
+                              ) -> Tuple[dict, Optional[MaskLossRecord]]:
+        """:meth:`loss` and the last stage's mask call (its samples and
+        logits), which CBNet-DD's teacher runs on.
+
+        Returns:
+            tuple: The losses of :meth:`loss` and a
+            :class:`MaskLossRecord` (None without a mask head).
+        """
+        return cascade_roi_losses(
+            self, x, rpn_results_list, batch_data_samples,
+            mask_stages=(self.num_stages - 1, ), weight_mask_losses=False)
 
     def mask_loss(self, stage: int, x: Tuple[Tensor],
                   sampling_results: List[SamplingResult],

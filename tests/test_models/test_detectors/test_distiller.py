@@ -3,6 +3,7 @@ from unittest import mock
 
 import pytest
 import torch
+from mmdet.models.roi_heads import StandardRoIHead
 from mmdet.registry import MODELS
 from mmdet.structures.bbox import bbox2roi
 from mmdet.testing import demo_mm_inputs
@@ -143,6 +144,16 @@ def test_bad_config_and_input(make_distiller_cfg):
         MODELS.build(cfg)
     with pytest.raises(ValueError, match='eval_with'):
         MODELS.build(make_distiller_cfg(eval_with='ema'))
+
+    class OwnLossRoIHead(StandardRoIHead):  # its losses can't be reproduced
+
+        def loss(self, *args, **kwargs):
+            return dict()
+
+    with mock.patch.dict(MODELS.module_dict,
+                         StandardRoIHead=OwnLossRoIHead):
+        with pytest.raises(TypeError, match='OwnLossRoIHead'):
+            MODELS.build(make_distiller_cfg())
     model = build(make_distiller_cfg())
     data = demo_mm_inputs(1, [(3, 64, 96)], num_classes=8, with_mask=True)
     data = model.data_preprocessor(data, True)
