@@ -37,13 +37,6 @@ DEFAULT_TRAIN_CFG = (
         debug=False),
 )
 
-# k = 1000 proposals per image (paper Sec. II.B).
-DEFAULT_TEST_CFG = dict(
-    nms_pre=2000,
-    max_per_img=1000,
-    nms=dict(type='nms', iou_threshold=0.8),
-    min_bbox_size=0)
-
 
 @MODELS.register_module()
 class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
@@ -71,9 +64,10 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
             rpn_head=dict(_delete_=True, type='CBNetCascadeRPNHead'),
             train_cfg=dict(rpn=None))  # or a list of two per-stage dicts
 
-    ``train_cfg.rpn=None`` selects the per-stage defaults below; the
-    detector's ``train_cfg.rpn_proposal`` / ``test_cfg.rpn`` then set ``k``
-    as ``max_per_img`` (1000 in MMDet's Faster R-CNN).
+    ``train_cfg.rpn=None`` selects the per-stage defaults below (the only
+    place they are written); the detector's ``train_cfg.rpn_proposal`` /
+    ``test_cfg.rpn`` set ``k`` as ``max_per_img`` (1000 in MMDet's Faster
+    R-CNN).
 
     Loss normalisation: both stages are :class:`CBNetStageCascadeRPNHead`,
     which averages each loss over the positive anchors of the batch (the
@@ -119,7 +113,12 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
             None uses ``DEFAULT_TRAIN_CFG``.
         test_cfg (dict, optional): Proposal post-processing: ``nms_pre``
             (boxes per level before NMS), ``max_per_img`` (k), ``nms``,
-            ``min_bbox_size``. None uses ``DEFAULT_TEST_CFG`` (k = 1000).
+            ``min_bbox_size``. A detector passes its ``test_cfg.rpn`` (and
+            ``train_cfg.rpn_proposal`` in training), as for every MMDet RPN
+            head: the proposal settings live in the config alone
+            (``configs/_base_/models/cbnet_mit-b5_nasfpn_crpn_cascade.py``:
+            the paper's k = 1000 in training, 300 at test). None: the head
+            trains, but proposing without a ``proposal_cfg`` raises.
         init_cfg (dict or list[dict], optional): Initialisation config.
             Defaults to None (each stage initialises its own layers).
     """
@@ -158,8 +157,8 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
                 'CBNetCascadeRPNHead: loss_obj must be a sigmoid loss '
                 "(use_sigmoid=True): the head has one objectness channel")
         train_cfg = self._check_train_cfg(train_cfg)
-        test_cfg = ConfigDict(
-            copy.deepcopy(DEFAULT_TEST_CFG if test_cfg is None else test_cfg))
+        if test_cfg is not None:
+            test_cfg = ConfigDict(copy.deepcopy(test_cfg))
         anchor_generator = dict(
             type='AnchorGenerator',
             scales=[anchor_scale],
@@ -247,3 +246,24 @@ class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
                 'CBNetCascadeRPNHead: train_cfg (`train_cfg.rpn`) needs one '
                 f'dict per stage (2), got {len(train_cfg)}')
         return [ConfigDict(copy.deepcopy(cfg)) for cfg in train_cfg]
+
+    def _check_proposal_cfg(self, cfg: OptConfigType) -> None:
+        if cfg is None and self.test_cfg is None:
+            raise ValueError(
+                'CBNetCascadeRPNHead: no proposal settings: build it with '
+                'test_cfg=dict(nms_pre=..., max_per_img=..., nms=..., '
+                'min_bbox_size=...) (a detector passes its test_cfg.rpn) '
+                'or pass proposal_cfg')
+
+    def loss_and_predict(self, x, batch_data_samples,
+                         proposal_cfg: OptConfigType = None):
+        """MMDet's ``loss_and_predict``, after checking that proposal
+        settings exist (``proposal_cfg`` or ``test_cfg``)."""
+        self._check_proposal_cfg(proposal_cfg)
+        return super().loss_and_predict(x, batch_data_samples,
+                                        proposal_cfg=proposal_cfg)
+
+    def predict(self, x, batch_data_samples, rescale: bool = False):
+        """MMDet's ``predict``, after checking that ``test_cfg`` exists."""
+        self._check_proposal_cfg(None)
+        return super().predict(x, batch_data_samples, rescale=rescale)

@@ -9,7 +9,7 @@ import torch.nn.functional as F
 from mmdet.registry import MODELS
 from mmdet.testing import demo_mm_inputs
 from mmdet.utils import register_all_modules
-from mmengine.config import Config
+from mmengine.config import Config, ConfigDict
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 
@@ -20,9 +20,17 @@ KEYS = {'s0.loss_rpn_reg', 's1.loss_rpn_cls', 's1.loss_rpn_reg'}
 register_all_modules()
 
 
+#: The paper's proposal settings (k = 1000), as the base config's
+#: train_cfg.rpn_proposal gives them to the head.
+PAPER_PROPOSALS = dict(
+    nms_pre=2000, max_per_img=1000, nms=dict(type='nms', iou_threshold=0.8),
+    min_bbox_size=0)
+
+
 def build_head(seed=0, **kwargs):
     torch.manual_seed(seed)
-    cfg = dict(type='CBNetCascadeRPNHead', in_channels=CH, feat_channels=CH)
+    cfg = dict(type='CBNetCascadeRPNHead', in_channels=CH, feat_channels=CH,
+               test_cfg=PAPER_PROPOSALS)
     cfg.update(kwargs)
     head = MODELS.build(cfg)
     head.init_weights()
@@ -85,7 +93,6 @@ def test_default_objective_is_the_papers():
     assert s2.rpn_conv.adapt_type == 'offset'
     assert s1.reg_decoded_bbox and s2.reg_decoded_bbox
     assert s1.num_anchors == 1 and s2.anchor_strides == list(STRIDES)
-    assert head.test_cfg.max_per_img == 1000
     assert type(s1.assigner).__name__ == 'RegionAssigner'
     assert type(s2.assigner).__name__ == 'MaxIoUAssigner'
     # ignore band of a focal objective (RetinaNet's 0.5 / 0.4)
@@ -292,6 +299,23 @@ def test_offset_adaption_matches_dilated_conv():
 def test_bad_train_cfg(train_cfg, match):
     with pytest.raises(ValueError, match=match):
         build_head(train_cfg=train_cfg)
+
+
+def test_proposal_settings_come_from_the_config_alone():
+    """No proposal defaults in code: a head without test_cfg trains, and
+    proposing then asks for the settings instead of inventing a k."""
+    img_hw = (67, 45)
+    head = build_head(test_cfg=None)
+    assert head.test_cfg is None
+    x, data = pyramid(img_hw, 2), samples(img_hw, [2, 1])
+    assert set(head.loss(x, data)) == KEYS
+    for propose in (lambda: head.predict(x, data),
+                    lambda: head.loss_and_predict(x, data)):
+        with pytest.raises(ValueError, match='no proposal settings'):
+            propose()
+    _, proposals = head.loss_and_predict(
+        x, data, proposal_cfg=ConfigDict(PAPER_PROPOSALS, max_per_img=5))
+    assert all(len(p) <= 5 for p in proposals)
 
 
 def test_bad_objectness_loss():
