@@ -12,6 +12,11 @@
 # images = 0.9M images seen (~14k iterations of 64), against 0.19M (~24k
 # iterations of 8) for MMDet's Cityscapes R-CNN recipe; YOLOX's strong
 # augmentation is tuned for its long schedule.
+# Why the data block is written here and not inherited from
+# `_base_/datasets/`: MMDet ships YOLOX only as a whole COCO recipe (no
+# model-only base), MMEngine refuses a key defined in two bases, and
+# YOLOX's data differ anyway (Mosaic/MixUp wrapper, square 114-padded
+# input).
 _base_ = 'mmdet::yolox/yolox_s_8xb8-300e_coco.py'
 
 custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)

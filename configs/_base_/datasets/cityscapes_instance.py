@@ -10,6 +10,7 @@ dataset_type = 'CBNetCityscapesDataset'
 data_root = 'data/cityscapes/'
 backend_args = None
 val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
+val_ann_path = data_root + val_ann_file  # what the evaluators read
 
 # MMCV's loader name, which MMDet's DetInferencer and corruption benchmark
 # look for; the CBNet datasets load with CBNetLoadImageFromFile (errors
@@ -54,13 +55,13 @@ test_dataloader = val_dataloader
 val_evaluator = [
     dict(
         type='CocoMetric',
-        ann_file=data_root + val_ann_file,
+        ann_file=val_ann_path,
         metric=['bbox', 'segm'],
         classwise=True,
         backend_args=backend_args),
     dict(
         type='CBNetInstanceMIoUMetric',
-        ann_file=data_root + val_ann_file,
+        ann_file=val_ann_path,
         # masks scoring below 0.5 are not painted; where masks overlap the
         # highest-scoring one is kept (see CBNetInstanceMIoUMetric)
         score_thr=0.5,
