@@ -29,7 +29,7 @@ import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 from cbnet_mmdet.utils.markdown import markdown_table
 
-from .recipe_comparison import configs_root
+from .config_edits import configs_root
 
 PACKAGE_DIR = osp.dirname(osp.abspath(cbnet_mmdet.__file__)) + os.sep
 DEMO = osp.join(configs_root(), 'demo',

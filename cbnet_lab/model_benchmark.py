@@ -4,17 +4,17 @@ alternation on the same synthetic inputs: the engine of
 how; the helpers it uses are :mod:`cbnet_lab.benchmark`).
 
 :func:`run` takes the tool's parsed arguments and returns the results;
-:func:`markdown` and :func:`plot` report them; :func:`machine` and
-:func:`load_average` describe where they were measured.
+:func:`markdown` and :func:`plot` report them; :func:`machine` describes
+where they were measured.
 """
 import copy
-import os
 import os.path as osp
-import platform
 import sys
 from contextlib import nullcontext
 
 from cbnet_mmdet.utils.markdown import markdown_table
+
+from .report import machine_info
 
 #: how the inference RoI heads got their proposals, for the tables
 PROPOSALS = dict(
@@ -223,39 +223,10 @@ def run(args, checkpoint=lambda results, scaling: None, root=None):
     return results, scaling
 
 
-def load_average():
-    """1-, 5- and 15-minute load averages, or ``None`` (no ``getloadavg``)."""
-    try:
-        return [round(v, 2) for v in os.getloadavg()]
-    except (AttributeError, OSError):
-        return None
-
-
-def machine(args):
-    """The machine, thread count and software of the run."""
-    import mmcv
-    import mmdet
-    import torch
-
-    import cbnet_mmdet
-    info = dict(
-        platform=platform.platform(),
-        processor=platform.processor() or platform.machine(),
-        cpu_count=os.cpu_count(),
-        threads=torch.get_num_threads(),
-        omp_num_threads=os.environ.get('OMP_NUM_THREADS'),
-        python=platform.python_version(),
-        torch=torch.__version__, mmcv=mmcv.__version__,
-        mmdet=mmdet.__version__, amp=args.amp,
-        # which copy was measured: the installed one, or a checkout's on
-        # PYTHONPATH (to compare two checkouts)
-        cbnet_mmdet=osp.dirname(cbnet_mmdet.__file__))
-    if args.device.startswith('cuda'):
-        info['device'] = torch.cuda.get_device_name(args.device)
-    else:
-        info['device'] = (f'CPU {info["processor"]}, {info["cpu_count"]} '
-                          f'cores, {info["threads"]} torch threads')
-    return info
+def machine(args) -> dict:
+    """The machine, thread count and software of the run
+    (:func:`cbnet_lab.report.machine_info`) and whether AMP was on."""
+    return dict(machine_info(args.device), amp=args.amp)
 
 
 def _f(v, fmt='{:.3f}'):

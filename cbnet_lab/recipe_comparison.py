@@ -38,10 +38,10 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from mmengine.config import Config
 
-from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
-from cbnet_mmdet.utils.markdown import markdown_table
-
 from .ap_drop import ap_drop, test_condition
+from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
+                           resume_file)
+from .report import machine_line, plot, to_markdown
 from .metric_keys import columns as metric_columns
 
 #: Built-in sets: (recipe name, config path relative to the configs root).
@@ -185,31 +185,6 @@ PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
 
 
 @dataclass
-class Budget:
-    """What every recipe of a comparison gets.
-
-    Attributes:
-        iters (int): Training iterations (0: evaluate the initialised,
-            untrained model).
-        batch_size (int): Images per iteration.
-        lr (float, optional): Base learning rate; None keeps each config's
-            (the shipped demo-size recipes all use 1e-3).
-        warmup_iters (int): Linear warm-up from 1 % of the lr, then
-            polynomial (power 1) decay to 0 at ``iters``.
-        num_workers (int): Data-loading workers.
-        img_scale (tuple[int, int], optional): ``(w, h)`` given to every
-            ``Resize`` of the training and test pipelines (the data
-            preset's image size); None keeps each config's.
-    """
-    iters: int = 120
-    batch_size: int = 4
-    lr: Optional[float] = None
-    warmup_iters: int = 30
-    num_workers: int = 1
-    img_scale: Optional[Tuple[int, int]] = None
-
-
-@dataclass
 class Preset:
     """A data root and the budget that goes with it (``--preset``).
 
@@ -249,19 +224,6 @@ PRESETS: Dict[str, Preset] = {
                     batch_size=4, warmup_iters=30,
                     img_scale=(512, 256)),
 }
-
-
-def configs_root() -> str:
-    """The shipped ``configs`` folder (source tree or installed wheel)."""
-    import cbnet_mmdet
-    pkg = osp.dirname(osp.abspath(cbnet_mmdet.__file__))
-    for root in (osp.join(osp.dirname(pkg), 'configs'),
-                 osp.join(pkg, '.mim', 'configs')):
-        if osp.isdir(root):
-            return root
-    raise FileNotFoundError(
-        'cbnet_mmdet: no configs folder next to the package or in its '
-        '.mim folder')
 
 
 def resolve_recipes(set_name: Optional[str] = None,
@@ -316,163 +278,6 @@ def slug(name: str) -> str:
     return re.sub(r'[^A-Za-z0-9.]+', '_', name).strip('_') or 'recipe'
 
 
-def replace_data_root(cfg: Config, data_root: str) -> None:
-    """Point every dataset and evaluator of ``cfg`` at ``data_root``.
-
-    Every ``data_root`` equal to the config's top-level ``data_root`` and
-    every ``ann_file`` under it is rewritten, wherever it sits (wrapped or
-    paired datasets, evaluator lists).
-
-    Args:
-        cfg (Config): Modified in place.
-        data_root (str): The new root.
-
-    Raises:
-        KeyError: The config has no top-level ``data_root``.
-    """
-    if 'data_root' not in cfg:
-        raise KeyError(
-            f'{cfg.filename}: no top-level data_root, so the harness cannot '
-            'move its datasets; define data_root as MMDet configs do')
-    old = cfg.data_root.rstrip('/') + '/'
-    new = data_root.rstrip('/') + '/'
-
-    def walk(node):
-        if isinstance(node, dict):
-            for key, value in node.items():
-                if isinstance(value, str) and key == 'data_root' and \
-                        value.rstrip('/') + '/' == old:
-                    node[key] = new
-                elif isinstance(value, str) and key == 'ann_file' and \
-                        value.startswith(old):
-                    node[key] = new + value[len(old):]
-                else:
-                    walk(value)
-        elif isinstance(node, (list, tuple)):
-            for value in node:
-                walk(value)
-
-    walk(cfg._cfg_dict)
-    cfg.data_root = new
-
-
-def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
-    """Give every ``Resize`` of ``cfg``'s dataloaders ``scale=img_scale``.
-
-    Every pipeline is walked, wherever it sits (wrapped or paired
-    datasets), so training and test images are resized alike.
-
-    Args:
-        cfg (Config): Modified in place.
-        img_scale (tuple[int, int]): ``(w, h)``, as MMDet's ``Resize``.
-
-    Returns:
-        int: How many ``Resize`` transforms were changed.
-
-    Raises:
-        ValueError: ``cfg`` has no ``Resize`` in its training or test
-            pipelines (the scale would silently not apply).
-    """
-    scale = tuple(int(v) for v in img_scale)
-    if len(scale) != 2 or min(scale) < 1:
-        raise ValueError(f'img_scale must be (w, h) > 0, got {img_scale}')
-    found = {'train': 0, 'test': 0}
-
-    def walk(node, part):
-        if isinstance(node, dict):
-            if node.get('type') == 'Resize' and 'scale' in node:
-                node['scale'] = scale
-                found[part] += 1
-            for value in node.values():
-                walk(value, part)
-        elif isinstance(node, (list, tuple)):
-            for value in node:
-                walk(value, part)
-
-    for key in ('train_dataloader', 'val_dataloader', 'test_dataloader'):
-        if cfg.get(key) is not None:
-            walk(cfg[key], 'train' if key.startswith('train') else 'test')
-    missing = [part for part, n in found.items() if n == 0]
-    if missing:
-        raise ValueError(
-            f'{cfg.filename}: no Resize with a scale in its {missing} '
-            f'pipeline(s), so img_scale {scale} cannot be applied; resize '
-            'with MMDet\'s Resize or leave img_scale unset')
-    return sum(found.values())
-
-
-def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
-               work_dir: str, cfg_options: Optional[dict] = None) -> Config:
-    """The config of one run: ``config`` under ``budget`` and ``seed``.
-
-    The training loop becomes iteration-based (``budget.iters``), the lr
-    schedule a linear warm-up and a poly decay over those iterations, the
-    batch ``budget.batch_size``; nothing is validated during training (the
-    harness tests the last checkpoint), one checkpoint is kept.
-
-    Args:
-        config (str): Config file.
-        budget (Budget): The common budget.
-        seed (int): Seed of the run (weights, sampling, augmentation).
-        data_root (str): Dataset root in the Cityscapes layout.
-        work_dir (str): The run's folder.
-        cfg_options (dict, optional): Overrides applied last.
-
-    Returns:
-        Config: The run's config.
-    """
-    cfg = Config.fromfile(config)
-    replace_data_root(cfg, data_root)
-    iters = max(budget.iters, 1)
-    cfg.train_dataloader.batch_size = budget.batch_size
-    cfg.train_dataloader.num_workers = budget.num_workers
-    cfg.train_dataloader.persistent_workers = budget.num_workers > 0
-    cfg.train_cfg = dict(
-        type='IterBasedTrainLoop', max_iters=iters, val_interval=iters + 1)
-    for key in ('val_dataloader', 'val_cfg', 'val_evaluator'):
-        cfg[key] = None
-    warmup = min(budget.warmup_iters, iters)
-    cfg.param_scheduler = [
-        dict(type='LinearLR', start_factor=1e-2, by_epoch=False, begin=0,
-             end=max(warmup, 1)),
-        dict(type='PolyLR', power=1.0, eta_min=0.0, by_epoch=False,
-             begin=0, end=iters),
-    ]
-    if budget.lr is not None:
-        cfg.optim_wrapper.optimizer.lr = budget.lr
-    # a checkpoint every sixth of the run (the last one kept), so that a
-    # run killed mid-way (a session's end) resumes from it, not from 0
-    cfg.default_hooks.checkpoint = dict(
-        type='CheckpointHook', interval=checkpoint_interval(iters),
-        by_epoch=False, max_keep_ckpts=1, save_best=None)
-    cfg.default_hooks.logger = dict(
-        type='LoggerHook', interval=max(1, iters // 10))
-    cfg.log_processor = dict(type='LogProcessor', window_size=10,
-                             by_epoch=False)
-    cfg.randomness = dict(seed=seed)
-    cfg.work_dir = work_dir
-    cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
-    if budget.img_scale is not None:
-        set_img_scale(cfg, budget.img_scale)
-    if cfg_options:
-        cfg.merge_from_dict(cfg_options)
-    # a killed run resumes from the file found in its work dir, not from
-    # the path MMEngine recorded (which names the original folder of a
-    # moved work dir); a run that starts keeps the recipe's own load_from
-    # (weights to fine-tune from, MMEngine's meaning), if any, with
-    # '{seed}' replaced by the run's seed (each seed fine-tunes the weights
-    # of the same seed of an earlier comparison)
-    resume = resume_file(work_dir)
-    cfg.resume = resume is not None
-    if resume is not None:
-        cfg.load_from = resume
-    else:
-        load_from = cfg.get('load_from')
-        cfg.load_from = None if load_from is None else str(
-            load_from).replace('{seed}', str(seed))
-    return cfg
-
-
 def _save_untrained(runner, path: str) -> None:
     """Initialise the runner's model and save it as a checkpoint."""
     import torch
@@ -487,37 +292,6 @@ def _save_untrained(runner, path: str) -> None:
 def result_file(out_dir: str, name: str, seed: int) -> str:
     """Where :func:`run_recipe` keeps the result of one recipe and seed."""
     return osp.join(out_dir, slug(name), f'seed{seed}', 'result.json')
-
-
-def checkpoint_interval(iters: int) -> int:
-    """Iterations between the checkpoints of a run: a sixth of it."""
-    return max(1, -(-iters // 6))
-
-
-#: The file name of an iteration checkpoint MMEngine saves (``iter_N.pth``).
-ITER_CHECKPOINT = re.compile(r'iter_(\d+)\.pth')
-
-
-def resume_file(work_dir: str) -> Optional[str]:
-    """The checkpoint a killed run of ``work_dir`` resumes from.
-
-    MMEngine writes ``last_checkpoint`` (the path of the newest checkpoint)
-    in the work dir; a run whose file names an existing ``iter_N.pth`` in
-    the work dir (also when the work dir was moved:
-    :func:`last_checkpoint_in`) resumes from it (MMEngine restores the
-    weights, the optimizer, the lr schedule and skips the data already
-    seen). None: start from 0.
-    """
-    path, _ = last_checkpoint_in(work_dir)
-    if path is None or not osp.isfile(path) or \
-            ITER_CHECKPOINT.fullmatch(osp.basename(path)) is None:
-        return None
-    return path
-
-
-def checkpoint_iter(path: str) -> int:
-    """N of a checkpoint ``.../iter_N.pth``."""
-    return int(ITER_CHECKPOINT.fullmatch(osp.basename(path)).group(1))
 
 
 def resume_iter(work_dir: str) -> Optional[int]:
@@ -881,119 +655,6 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
                 recipes=list(recipes), summary=summary)
 
 
-def _cell(stat: Optional[dict]) -> str:
-    if stat is None:
-        return '-'
-    if stat['n'] > 1:
-        return f"{stat['mean']:.1f} +- {stat['std']:.1f}"
-    return f"{stat['mean']:.1f}"
-
-
-def to_markdown(summary: dict) -> str:
-    """Markdown tables of :func:`summarize`: one per condition.
-
-    Clear val: every column and the training time. Foggy val: every column
-    and the drop of each from clear (clear - foggy; positive = worse in
-    fog). Cells are ``mean +- std`` over seeds (std of the sample).
-    """
-    cols = summary['columns']
-    out = []
-    for condition in summary['conditions']:
-        foggy = condition != summary['conditions'][0]
-        heads = cols + ([f'{c} drop' for c in cols] if foggy
-                        else ['train time (s)'])
-        out.append(f'**{condition}**\n')
-        rows = []
-        for recipe in summary['recipes']:
-            entry = summary['summary'][recipe]
-            cells = [_cell(entry[condition].get(h)) for h in heads] \
-                if foggy else \
-                [_cell(entry[condition].get(h)) for h in cols] + \
-                [_cell(entry['train time (s)'])]
-            rows.append([recipe] + cells)
-        out += markdown_table(['recipe'] + heads, rows)
-        out.append('')
-    return '\n'.join(out)
-
-
-def plot(summary: dict, betas: Sequence[float], path: str,
-         column: Optional[str] = None) -> str:
-    """AP (or AR) vs fog density per recipe, mean +- std over seeds.
-
-    With no fog density (real data: one condition), a bar per recipe.
-
-    Args:
-        summary (dict): :func:`summarize` output.
-        betas (Sequence[float]): Fog densities; clear is drawn at 0.
-        path (str): Output image (PNG).
-        column (str, optional): Column to draw; default mask AP when
-            every recipe reports it, else box AP (a box-only detector in
-            the set), else the last column (AR@1000 for proposals).
-
-    Returns:
-        str: ``path``.
-    """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    cols = summary['columns']
-    reference = summary['conditions'][0]
-    if column is None:
-        clear = [summary['summary'][r][reference]
-                 for r in summary['recipes']]
-        column = next((c for c in ('mask AP', 'box AP') if c in cols and
-                       all(e.get(c) is not None for e in clear)), cols[-1])
-    xs = [0.0] + list(betas)
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
-    if not betas:
-        _bars(ax, summary, reference, column)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        return path
-    for recipe in summary['recipes']:
-        entry = summary['summary'][recipe]
-        stats = [entry[c].get(column) for c in summary['conditions']]
-        pts = [(x, s) for x, s in zip(xs, stats) if s is not None]
-        if not pts:
-            continue
-        ax.errorbar([p[0] for p in pts], [p[1]['mean'] for p in pts],
-                    yerr=[p[1]['std'] for p in pts], marker='o', capsize=3,
-                    label=recipe)
-    ax.set_xlabel('fog density beta (1/m; 0 = clear)')
-    ax.set_ylabel(f'{column} (%)')
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
-
-def _bars(ax, summary: dict, condition: str, column: str) -> None:
-    """Bars of ``column`` (mean +- std) per recipe on ``condition``."""
-    recipes = summary['recipes']
-    stats = [summary['summary'][r][condition].get(column) for r in recipes]
-    ax.bar(range(len(recipes)), [s['mean'] if s else 0.0 for s in stats],
-           yerr=[s['std'] if s else 0.0 for s in stats], capsize=3,
-           color=[f'C{i}' for i in range(len(recipes))])
-    ax.set_xticks(range(len(recipes)))
-    ax.set_xticklabels(recipes, rotation=30, ha='right', fontsize=8)
-    ax.set_ylabel(f'{column} (%) on {condition}')
-    ax.grid(alpha=0.3, axis='y')
-
-
-def machine() -> str:
-    """One line describing this machine and the software stack."""
-    import mmdet
-    import torch
-    cores = os.cpu_count()
-    return (f'{platform.machine()} {cores}-core, {platform.system()}, '
-            f'torch {torch.__version__}, mmdet {mmdet.__version__}, '
-            f'{torch.get_num_threads()} intra-op thread(s)')
-
-
 def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget: Budget, data_root: str, betas: Sequence[float],
             out_dir: str, cfg_options: Optional[dict] = None,
@@ -1101,7 +762,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     record = dict(
         set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],
         seeds=list(seeds), budget=asdict(budget), data_root=data_root,
-        betas=list(betas), machine=machine(),
+        betas=list(betas), machine=machine_line(),
         date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
         runs=results, summary=summary)
     with open(osp.join(out_dir, 'compare.json'), 'w') as f:

@@ -7,6 +7,7 @@ import os.path as osp
 import pytest
 from mmengine.config import Config
 
+from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -122,7 +123,7 @@ def test_each_config_swaps_exactly_one_part(config, start, part):
 
 def test_the_parts_set_lists_every_swap_once():
     names = [n for n, _ in rc.RECIPE_SETS['parts']]
-    paths = {osp.normpath(osp.join(rc.configs_root(), p))
+    paths = {osp.normpath(osp.join(ce.configs_root(), p))
              for _, p in rc.RECIPE_SETS['parts']}
     assert len(names) == len(set(names)) == len(paths)
     for config, _, _ in SWAPS:

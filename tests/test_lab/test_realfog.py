@@ -15,7 +15,9 @@ from tool_helpers import load_tool
 from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
                                                        write_voc_folder)
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
+from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab import report
 from cbnet_lab.ap_drop import (ap_drop, default_betas,
                                real_fog_cfg,
                                with_empty_coco_results)
@@ -31,7 +33,7 @@ DATASET_CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
 def oracle_cfg(cfg, root, tmp_path, drop_class=None):
     """``cfg``'s test set (no resize: the oracle's boxes are in the
     original image) around the oracle, on ``root``, and a checkpoint."""
-    rc.replace_data_root(cfg, root)
+    ce.replace_data_root(cfg, root)
     cfg.default_scope = 'mmdet'
     # the evaluation tests' oracle (conftest.py): predicts the ground truth
     cfg.model = dict(type='_CBNetTestOracle', drop_class=drop_class,
@@ -150,10 +152,10 @@ def test_summary_table_and_bars_on_one_real_condition(tmp_path):
     stat = summary['summary']['A']['real fog']['box AP']
     assert stat['mean'] == pytest.approx(15.0)
     assert stat['std'] == pytest.approx(np.std([10, 20, 15], ddof=1))
-    md = rc.to_markdown(summary)
+    md = report.to_markdown(summary)
     assert '**real fog**' in md and 'drop' not in md
     assert '| A | 15.0 +- 5.0 | 30.0 +- 10.0 | 5.0 +- 0.0 |' in md
-    path = rc.plot(summary, [], str(tmp_path / 'bars.png'))
+    path = report.plot(summary, [], str(tmp_path / 'bars.png'))
     with open(path, 'rb') as f:
         assert f.read(8) == b'\x89PNG\r\n\x1a\n'
 
@@ -165,10 +167,10 @@ def test_reference_condition_and_mixing(tmp_path):
     with pytest.raises(ValueError, match='tested on different data'):
         rc.reference_condition(realfog[:1] + rc.resolve_recipes('arch'))
     with pytest.raises(ValueError, match='no foggy betas apply'):
-        rc.compare(realfog, [0], rc.Budget(iters=1), str(tmp_path), [0.02],
+        rc.compare(realfog, [0], ce.Budget(iters=1), str(tmp_path), [0.02],
                    str(tmp_path / 'out'))
     with pytest.raises(FileNotFoundError, match='give its folder'):
-        rc.compare(realfog, [0], rc.Budget(iters=1), str(tmp_path / 'no'),
+        rc.compare(realfog, [0], ce.Budget(iters=1), str(tmp_path / 'no'),
                    [], str(tmp_path / 'out'))
 
 

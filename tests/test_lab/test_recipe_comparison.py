@@ -1,14 +1,16 @@
 """The comparison harness (cbnet_lab/recipe_comparison.py)."""
 import glob
 import json
-import os
 import os.path as osp
+from dataclasses import asdict
 
 import numpy as np
 import pytest
 from tool_helpers import load_tool
 
+from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab import report
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -61,52 +63,8 @@ def test_a_variant_without_its_source_weights_is_a_clear_error(tmp_path):
     config = osp.join(ROOT, 'configs', 'demo', 'rpn',
                       'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
     with pytest.raises(FileNotFoundError, match="weights of 'CRPN', seed 3"):
-        rc.run_recipe('k100', config, 3, rc.Budget(iters=5), str(tmp_path),
+        rc.run_recipe('k100', config, 3, ce.Budget(iters=5), str(tmp_path),
                       [0.02], str(tmp_path), weights_of='CRPN')
-
-
-def walk_strings(node, key=None):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from walk_strings(v, k)
-    elif isinstance(node, (list, tuple)):
-        for v in node:
-            yield from walk_strings(v, key)
-    elif isinstance(node, str):
-        yield key, node
-
-
-@pytest.mark.parametrize('recipe', [r for s in ('arch', 'ablation')
-                                    for r in rc.resolve_recipes(s)],
-                         ids=lambda r: r[0])
-def test_budget_cfg_moves_data_and_sets_the_budget(recipe, tmp_path):
-    _, config = recipe
-    budget = rc.Budget(iters=17, batch_size=3, lr=5e-4, warmup_iters=5,
-                       num_workers=0)
-    cfg = rc.budget_cfg(config, budget, seed=7, data_root='/data/x',
-                        work_dir=str(tmp_path))
-    strings = list(walk_strings(cfg._cfg_dict.to_dict()))
-    roots = [v for k, v in strings if k == 'data_root']
-    assert roots and set(roots) == {'/data/x/'}
-    # evaluators carry absolute annotation paths; datasets relative ones
-    anns = [v for k, v in strings if k == 'ann_file' and v.startswith('/')]
-    assert anns and all(v.startswith('/data/x/') for v in anns), anns
-    assert not [v for _, v in strings if 'cityscapes_like' in v]
-    assert cfg.train_dataloader.batch_size == 3
-    assert cfg.train_cfg == dict(type='IterBasedTrainLoop', max_iters=17,
-                                 val_interval=18)
-    assert cfg.val_dataloader is None and cfg.val_evaluator is None
-    assert [s['end'] for s in cfg.param_scheduler] == [5, 17]
-    assert cfg.optim_wrapper.optimizer.lr == 5e-4
-    assert cfg.randomness.seed == 7
-    assert cfg.test_dataloader.dataset.data_root == '/data/x/'
-
-
-def test_data_root_needs_a_top_level_data_root(tmp_path):
-    from mmengine.config import Config
-    cfg = Config(dict(train_dataloader=dict()))
-    with pytest.raises(KeyError, match='no top-level data_root'):
-        rc.replace_data_root(cfg, '/x')
 
 
 def fake_run(recipe, seed, clear, foggy, key='coco/segm_mAP'):
@@ -134,7 +92,7 @@ def test_summarize_mean_std_and_drop_against_numpy():
     b = summary['summary']['B']
     assert b['foggy beta=0.02']['mask AP'] is None
     assert b['foggy beta=0.02']['mask AP drop'] is None
-    md = rc.to_markdown(summary)
+    md = report.to_markdown(summary)
     assert '**clear**' in md and '**foggy beta=0.02**' in md
     assert '| A | 30.0 +- 4.0 | 11.0 +- 1.0 |' in md
     assert '| B | - | - |' in md
@@ -150,23 +108,7 @@ def test_a_box_only_recipe_shows_dashes_for_masks_not_zero():
     boxes = summary['summary']['boxes']['clear']
     assert boxes['mask AP'] is None
     assert boxes['box AP']['mean'] == pytest.approx(40.0)
-    assert '| boxes | 40.0 | - |' in rc.to_markdown(summary)
-
-
-def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
-    import matplotlib.axes
-    runs = [fake_run('masks', 0, 0.3, 0.2),
-            fake_run('boxes', 0, 0.4, 0.3, key='coco/bbox_mAP')]
-    runs[0]['metrics']['clear']['coco/bbox_mAP'] = 0.35
-    runs[0]['metrics']['foggy beta=0.02']['coco/bbox_mAP'] = 0.25
-    labels = []
-    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
-                        lambda self, text, **kw: labels.append(text))
-    rc.plot(rc.summarize(runs, [0.02]), [0.02], str(tmp_path / 'p.png'))
-    assert labels == ['box AP (%)']  # every recipe on the plot
-    labels.clear()
-    rc.plot(rc.summarize(runs[:1], [0.02]), [0.02], str(tmp_path / 'q.png'))
-    assert labels == ['mask AP (%)']
+    assert '| boxes | 40.0 | - |' in report.to_markdown(summary)
 
 
 def test_proposal_columns_are_picked_for_rpn_runs():
@@ -176,14 +118,6 @@ def test_proposal_columns_are_picked_for_rpn_runs():
             cond.update({'coco/AR@100': 0.2, 'coco/AR@300': 0.3})
     summary = rc.summarize(runs, [0.02])
     assert summary['columns'] == ['AR@100', 'AR@300', 'AR@1000']
-
-
-def test_plot_writes_a_png(tmp_path):
-    runs = [fake_run('A', s, 0.3, 0.2) for s in range(2)]
-    path = rc.plot(rc.summarize(runs, [0.02]), [0.02],
-                   str(tmp_path / 'p.png'))
-    with open(path, 'rb') as f:
-        assert f.read(8) == b'\x89PNG\r\n\x1a\n'
 
 
 @pytest.mark.slow
@@ -241,77 +175,31 @@ def test_compare_end_to_end_trained_beats_untrained(
     assert again['runs'] == trained['runs']
 
 
-def resizes(cfg):
-    found = []
-
-    def walk(node):
-        if isinstance(node, dict):
-            if node.get('type') == 'Resize':
-                found.append(tuple(node['scale']))
-            for v in node.values():
-                walk(v)
-        elif isinstance(node, (list, tuple)):
-            for v in node:
-                walk(v)
-
-    for key in ('train_dataloader', 'test_dataloader'):
-        walk(cfg[key])
-    return found
-
-
-@pytest.mark.parametrize('recipe', [r for s in ('arch', 'ablation')
-                                    for r in rc.resolve_recipes(s)],
-                         ids=lambda r: r[0])
-def test_budget_img_scale_resizes_every_pipeline(recipe, tmp_path):
-    """The bench preset's image size reaches the training and the test
-    pipelines of every recipe, wrapped and paired datasets included."""
-    _, config = recipe
-    cfg = rc.budget_cfg(config, rc.Budget(iters=2, img_scale=(512, 256)),
-                        seed=0, data_root='/d', work_dir=str(tmp_path))
-    found = resizes(cfg)
-    assert len(found) >= 2 and set(found) == {(512, 256)}
-    kept = rc.budget_cfg(config, rc.Budget(iters=2), seed=0,
-                         data_root='/d', work_dir=str(tmp_path))
-    assert set(resizes(kept)) == {(256, 128)}
-
-
-def test_img_scale_without_a_resize_is_an_error():
-    from mmengine.config import Config
-    cfg = Config(dict(
-        train_dataloader=dict(dataset=dict(pipeline=[dict(type='Pad')])),
-        test_dataloader=dict(dataset=dict(pipeline=[
-            dict(type='Resize', scale=(1, 1))]))))
-    with pytest.raises(ValueError, match=r"no Resize .*\['train'\]"):
-        rc.set_img_scale(cfg, (64, 32))
-    with pytest.raises(ValueError, match='must be'):
-        rc.set_img_scale(cfg, (64, 0))
-
-
 def test_a_finished_run_of_another_budget_is_not_mixed_in(tmp_path):
     path = tmp_path / 'result.json'
-    budget = rc.Budget(iters=300, batch_size=4, img_scale=(512, 256))
+    budget = ce.Budget(iters=300, batch_size=4, img_scale=(512, 256))
     path.write_text(json.dumps(dict(
         recipe='a', seed=0, metrics={},
-        budget=json.loads(json.dumps(rc.asdict(budget))))))
+        budget=json.loads(json.dumps(asdict(budget))))))
     assert rc.read_result(str(path), budget)['recipe'] == 'a'
     with pytest.raises(ValueError, match=r"'iters': \(300, 120\)"):
-        rc.read_result(str(path), rc.Budget(iters=120, batch_size=4,
+        rc.read_result(str(path), ce.Budget(iters=120, batch_size=4,
                                             img_scale=(512, 256)))
     with pytest.raises(ValueError, match='img_scale'):
-        rc.read_result(str(path), rc.Budget(iters=300, batch_size=4))
+        rc.read_result(str(path), ce.Budget(iters=300, batch_size=4))
     # records written before img_scale existed read as img_scale None
-    old = rc.asdict(rc.Budget())
+    old = asdict(ce.Budget())
     del old['img_scale']
     path.write_text(json.dumps(dict(recipe='b', seed=0, budget=old)))
-    assert rc.read_result(str(path), rc.Budget())['recipe'] == 'b'
+    assert rc.read_result(str(path), ce.Budget())['recipe'] == 'b'
 
 
 def test_restore_runs_of_a_saved_record(tmp_path):
-    budget = rc.Budget(iters=3)
+    budget = ce.Budget(iters=3)
     runs = [fake_run('x', 0, 0.2, 0.1), fake_run('x', 1, 0.3, 0.2)]
     record = tmp_path / 'compare.json'
     record.write_text(json.dumps(dict(
-        budget=json.loads(json.dumps(rc.asdict(budget))), runs=runs)))
+        budget=json.loads(json.dumps(asdict(budget))), runs=runs)))
     out = tmp_path / 'out'
     assert rc.restore_runs(str(record), str(out), budget) == 2
     assert rc.read_result(rc.result_file(str(out), 'x', 1),
@@ -320,7 +208,7 @@ def test_restore_runs_of_a_saved_record(tmp_path):
     assert rc.restore_runs(str(record), str(out), budget) == 0
     with pytest.raises(ValueError, match='cannot be mixed in'):
         rc.restore_runs(str(record), str(tmp_path / 'o2'),
-                        rc.Budget(iters=4))
+                        ce.Budget(iters=4))
 
 
 def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
@@ -381,7 +269,7 @@ def test_compare_waits_for_runs_held_by_another_process(tmp_path,
 
     monkeypatch.setattr(rc.time, 'sleep', finish_other)
     logs = []
-    record = rc.compare([('x', 'x.py')], [0, 1], rc.Budget(iters=1),
+    record = rc.compare([('x', 'x.py')], [0, 1], ce.Budget(iters=1),
                         str(tmp_path / 'data'), [0.02], out,
                         log=logs.append)
     assert trained == [('x', 0)] and calls == [1]
@@ -430,55 +318,8 @@ def test_resume_iter_reads_mmengines_marker(tmp_path):
     marker.write_text(str(tmp_path / 'epoch_3.pth'))
     (tmp_path / 'epoch_3.pth').write_bytes(b'')
     assert rc.resume_iter(str(tmp_path)) is None
-    assert [rc.checkpoint_interval(n) for n in (1, 6, 120, 600, 601)] == \
+    assert [ce.checkpoint_interval(n) for n in (1, 6, 120, 600, 601)] == \
         [1, 1, 20, 100, 101]
-
-
-def test_a_moved_run_resumes_from_its_own_folder(tmp_path):
-    """MMEngine's marker names the ORIGINAL folder's file (absolute
-    path); the run resumes from the copy in its work dir."""
-    moved = tmp_path / 'moved'
-    moved.mkdir()
-    (moved / 'last_checkpoint').write_text(
-        str(tmp_path / 'original' / 'iter_200.pth'))
-    assert rc.resume_file(str(moved)) is None  # no copy: from scratch
-    (moved / 'iter_200.pth').write_bytes(b'')
-    assert rc.resume_file(str(moved)) == str(moved / 'iter_200.pth')
-    assert rc.resume_iter(str(moved)) == 200
-
-
-def test_a_recipes_own_load_from_is_kept_until_the_run_resumes(tmp_path):
-    """A recipe that fine-tunes (``load_from`` in its config or in
-    ``--cfg-options``) starts from those weights; before, the harness set
-    ``load_from`` to None for every run that did not resume, so such a
-    recipe silently trained from scratch. A killed run resumes from its
-    own checkpoint, not from the fine-tuning weights."""
-    crpn = osp.join(ROOT, 'configs', 'demo', 'rpn',
-                    'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
-    budget = rc.Budget(iters=6, batch_size=2, warmup_iters=2, num_workers=0)
-    run_dir = str(tmp_path / 'run')
-    init = str(tmp_path / 'pretrained.pth')
-    cfg = rc.budget_cfg(crpn, budget, 0, 'data', run_dir,
-                        cfg_options={'load_from': init})
-    assert cfg.load_from == init and cfg.resume is False
-    recipe = tmp_path / 'finetune.py'
-    recipe.write_text(f"_base_ = ['{crpn}']\nload_from = '{init}'\n")
-    cfg = rc.budget_cfg(str(recipe), budget, 0, 'data', run_dir)
-    assert cfg.load_from == init and cfg.resume is False
-    assert rc.budget_cfg(crpn, budget, 0, 'data', run_dir).load_from is None
-    # '{seed}': each seed fine-tunes the same seed's weights
-    cfg = rc.budget_cfg(crpn, budget, 2, 'data', run_dir, cfg_options={
-        'load_from': 'work_dirs/compare/parts/CBNet/seed{seed}/iter_6.pth'})
-    assert cfg.load_from == 'work_dirs/compare/parts/CBNet/seed2/iter_6.pth'
-    # killed at iteration 3: resumes from its own checkpoint
-    os.makedirs(run_dir)
-    (tmp_path / 'run' / 'iter_3.pth').write_bytes(b'')
-    (tmp_path / 'run' / 'last_checkpoint').write_text(
-        osp.join(run_dir, 'iter_3.pth'))
-    cfg = rc.budget_cfg(str(recipe), budget, 0, 'data', run_dir,
-                        cfg_options={'load_from': init})
-    assert cfg.load_from == osp.join(run_dir, 'iter_3.pth')
-    assert cfg.resume is True
 
 
 def test_a_killed_run_resumes_from_its_last_checkpoint(
@@ -488,18 +329,18 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(
     its record says so."""
     crpn = osp.join(ROOT, 'configs', 'demo', 'rpn',
                     'crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
-    budget = rc.Budget(iters=6, batch_size=2, warmup_iters=2, num_workers=0)
+    budget = ce.Budget(iters=6, batch_size=2, warmup_iters=2, num_workers=0)
     args = ('CRPN', crpn, 0, budget, cityscapes_like_root, [],
             str(tmp_path))
     run_dir = osp.dirname(rc.result_file(str(tmp_path), 'CRPN', 0))
-    cfg = rc.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
+    cfg = ce.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
     assert cfg.resume is False
     assert cfg.default_hooks.checkpoint.interval == 1
     # "killed" after 3 iterations: the test of iteration 6's weights fails
     with pytest.raises(Exception):
         rc.run_recipe(*args, cfg_options={'train_cfg.max_iters': 3})
     assert rc.resume_iter(run_dir) == 3
-    cfg = rc.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
+    cfg = ce.budget_cfg(crpn, budget, 0, cityscapes_like_root, run_dir)
     assert cfg.resume is True
     # MMEngine resumes from load_from: the file found in the work dir
     assert cfg.load_from == osp.join(run_dir, 'iter_3.pth')

@@ -57,8 +57,9 @@ import time
 from datetime import datetime, timezone
 
 from cbnet_lab import model_benchmark
-from cbnet_lab.model_benchmark import (REFERENCE, load_average, machine,
-                                       markdown, peak_memory_method, plot)
+from cbnet_lab.model_benchmark import (REFERENCE, machine, markdown,
+                                       peak_memory_method, plot)
+from cbnet_lab.report import load_average
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 

@@ -155,6 +155,7 @@ def main(argv=None) -> dict:
     import torch
 
     from cbnet_lab import recipe_comparison as rc
+    from cbnet_lab.config_edits import Budget
     if args.threads:
         torch.set_num_threads(args.threads)
     recipes = rc.resolve_recipes(args.set, args.configs, args.only)
@@ -163,7 +164,7 @@ def main(argv=None) -> dict:
     if args.preset != 'demo':
         name += f'_{args.preset}'
     work_dir = args.work_dir or osp.join('work_dirs', 'compare', name)
-    budget = rc.Budget(
+    budget = Budget(
         iters=args.iters, batch_size=args.batch_size, lr=args.lr,
         warmup_iters=args.warmup_iters, num_workers=args.num_workers,
         img_scale=tuple(args.img_scale) if args.img_scale else None)

@@ -1,0 +1,60 @@
+"""Reporting of the lab (cbnet_lab/report.py): plots of a comparison and
+the machine line."""
+from cbnet_lab import recipe_comparison as rc
+from cbnet_lab import report
+from cbnet_lab.report import machine_info, machine_line
+
+
+def fake_run(recipe, seed, clear, foggy, key='coco/segm_mAP'):
+    return dict(recipe=recipe, seed=seed, train_time_s=10.0 + seed,
+                metrics={'clear': {key: clear},
+                         'foggy beta=0.02': {key: foggy}})
+
+
+def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
+    import matplotlib.axes
+    runs = [fake_run('masks', 0, 0.3, 0.2),
+            fake_run('boxes', 0, 0.4, 0.3, key='coco/bbox_mAP')]
+    runs[0]['metrics']['clear']['coco/bbox_mAP'] = 0.35
+    runs[0]['metrics']['foggy beta=0.02']['coco/bbox_mAP'] = 0.25
+    labels = []
+    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
+                        lambda self, text, **kw: labels.append(text))
+    report.plot(rc.summarize(runs, [0.02]), [0.02], str(tmp_path / 'p.png'))
+    assert labels == ['box AP (%)']  # every recipe on the plot
+    labels.clear()
+    report.plot(rc.summarize(runs[:1], [0.02]), [0.02],
+                str(tmp_path / 'q.png'))
+    assert labels == ['mask AP (%)']
+
+
+def test_plot_writes_a_png(tmp_path):
+    runs = [fake_run('A', s, 0.3, 0.2) for s in range(2)]
+    path = report.plot(rc.summarize(runs, [0.02]), [0.02],
+                       str(tmp_path / 'p.png'))
+    with open(path, 'rb') as f:
+        assert f.read(8) == b'\x89PNG\r\n\x1a\n'
+
+
+def test_machine_info_and_line_describe_this_run(monkeypatch):
+    import os
+    import platform
+
+    import torch
+    monkeypatch.setattr(os, 'getloadavg', lambda: (1.234, 0.5, 0.25))
+    info = machine_info('cpu')
+    assert info['cpu_count'] == os.cpu_count()
+    assert info['threads'] == torch.get_num_threads()
+    assert info['torch'] == torch.__version__
+    assert info['loadavg'] == [1.23, 0.5, 0.25]
+    assert info['device'].startswith('CPU ')
+    line = machine_line(info)
+    assert line.startswith(info['device'])
+    assert f'torch {torch.__version__}' in line and platform.system() in line
+    assert line.endswith('load 1.23 / 0.50 / 0.25')
+
+    def no_loadavg():
+        raise OSError('no load average here')
+
+    monkeypatch.setattr(os, 'getloadavg', no_loadavg)
+    assert 'load' not in machine_line(machine_info('cpu'))
