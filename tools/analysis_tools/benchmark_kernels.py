@@ -9,10 +9,11 @@ one device: which one is faster THERE decides ``impl='auto'``.
   ``--size`` (strides 4-64, ``--channels`` in and out, 3x3, offsets of a
   few pixels): inference (batch 1, no grad) and training (batch 2,
   forward + backward of input, offsets and weight).
-* boundary-aware mask loss: ``fused`` (:func:`boundary_ops.boundary_loss`,
-  one autograd Function) against ``autograd`` (:func:`boundary_ops.
-  boundary_loss_autograd`, the same loss composed of differentiable tensor
-  functions), forward + backward on ``--rois`` RoIs of 28x28 with 8 classes.
+* boundary-aware mask loss: ``fused``
+  (:func:`boundary_loss_fused.boundary_loss`, one autograd Function)
+  against ``autograd`` (:func:`boundary_ops.boundary_loss_autograd`, the
+  same loss composed of differentiable tensor functions), forward +
+  backward on ``--rois`` RoIs of 28x28 with 8 classes.
 
 The implementations are timed in alternation (one call of each per round,
 ``--repeats`` rounds after a warm-up), so that load changes hit them alike;
@@ -39,7 +40,7 @@ import torch
 from cbnet_lab.benchmark import summarize, time_calls
 from cbnet_mmdet.models.layers.cbnet_deform_conv2d import \
     deform_conv2d as gather_deform_conv2d
-from cbnet_mmdet.models.losses import boundary_ops
+from cbnet_mmdet.models.losses import boundary_loss_fused, boundary_ops
 from cbnet_mmdet.utils.markdown import markdown_table
 
 STRIDES = (4, 8, 16, 32, 64)
@@ -181,7 +182,7 @@ def main(argv=None):
     for rois in args.rois:
         inputs = loss_inputs(rois, device)
         cases = {
-            'fused': loss_case(boundary_ops.boundary_loss, *inputs),
+            'fused': loss_case(boundary_loss_fused.boundary_loss, *inputs),
             'autograd': loss_case(boundary_ops.boundary_loss_autograd,
                                   *inputs),
         }

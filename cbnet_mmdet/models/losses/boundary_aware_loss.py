@@ -19,7 +19,7 @@ from mmdet.models.losses.utils import weight_reduce_loss
 from mmdet.registry import MODELS
 from torch import Tensor
 
-from .boundary_ops import boundary_loss
+from .boundary_loss_fused import boundary_loss
 
 
 @MODELS.register_module()
@@ -39,7 +39,7 @@ class CBNetBoundaryAwareLoss(nn.Module):
     every term lies in ``[0, 1]`` except the BCE. The instance losses are
     reduced with MMDet's ``weight_reduce_loss`` and multiplied by
     ``loss_weight``. All instances are processed at once, by
-    :func:`.boundary_ops.boundary_loss` (one autograd function, forward
+    :func:`.boundary_loss_fused.boundary_loss` (one autograd function, forward
     and backward fused).
 
     The call signature matches ``CrossEntropyLoss(use_mask=True)``, so it is
@@ -109,7 +109,7 @@ class CBNetBoundaryAwareLoss(nn.Module):
             tuple[Tensor, Tensor | None]: ``Tensor[N, H, W]`` logits of the
             labelled class, and None; or (``C > 1``) the ``Tensor[N * C,
             H, W]`` logits and the row of each RoI's class, which
-            :func:`.boundary_ops.boundary_loss` selects itself (a
+            :func:`.boundary_loss_fused.boundary_loss` selects itself (a
             contiguous copy, and its gradient scattered directly).
         """
         if pred.dim() != 4:

@@ -6,8 +6,8 @@ from mmdet.registry import MODELS
 from scipy import ndimage
 
 import cbnet_mmdet  # noqa: F401  (registers the loss)
-from cbnet_mmdet.models.losses.boundary_ops import (boundary_loss,
-                                                    boundary_loss_autograd)
+from cbnet_mmdet.models.losses.boundary_loss_fused import boundary_loss
+from cbnet_mmdet.models.losses.boundary_ops import boundary_loss_autograd
 
 
 def blob_inputs(num, size, seed, dtype=torch.float32):
