@@ -10,9 +10,9 @@ from mmdet.structures.bbox import bbox2roi
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from torch import Tensor
 
+from ..data_preprocessors.paired_data_preprocessor import IMG_CHANNELS
 from ..roi_heads.roi_head_losses import (mask_record_losses_of,
                                          roi_losses_with_mask_record)
-from .paired_data_preprocessor import IMG_CHANNELS
 
 EVAL_MODELS = ('student', 'teacher')
 

@@ -156,11 +156,6 @@ def make_distiller_cfg():
 
 
 @pytest.fixture
-def make_preprocessor_cfg():
-    return paired_preprocessor_cfg
-
-
-@pytest.fixture
 def make_detector_cfg():
     """``make_detector_cfg(base='mask-rcnn_r50_fpn.py', roi_head_type=None)``:
     the tiny MMDetection detector config (see :func:`tiny_detector_cfg`)."""

@@ -6,7 +6,18 @@ from mmdet.testing import demo_mm_inputs
 import cbnet_mmdet  # noqa: F401
 
 
-def test_halves_processed_like_single_images(make_preprocessor_cfg):
+def make_preprocessor_cfg():
+    """CBNet-DD's paired preprocessor with ImageNet's (B, G, R) statistics,
+    as the CBNet-DD configs set it."""
+    return dict(
+        type='CBNetPairedDataPreprocessor',
+        mean=[123.675, 116.28, 103.53],
+        std=[58.395, 57.12, 57.375],
+        bgr_to_rgb=True,
+        pad_size_divisor=32)
+
+
+def test_halves_processed_like_single_images():
     pre = MODELS.build(make_preprocessor_cfg())
     paired = demo_mm_inputs(2, [(6, 40, 50), (6, 64, 30)], num_items=[1, 1])
     foggy = dict(inputs=[x[:3].clone() for x in paired['inputs']],
@@ -29,7 +40,7 @@ def test_halves_processed_like_single_images(make_preprocessor_cfg):
     assert out['data_samples'][1].pad_shape == (64, 32)
 
 
-def test_bad_input(make_preprocessor_cfg):
+def test_bad_input():
     with pytest.raises(ValueError, match='batch_augments'):
         MODELS.build(
             dict(make_preprocessor_cfg(),
