@@ -45,7 +45,7 @@ def test_profile_infer_and_train(tool, tmp_path, capsys):
     # the backward is a real part of a training step
     assert train['parts_ms']['backward'] > 0
     saved = json.loads(out.read_text())
-    assert saved['meta']['threads'] == 1
+    assert saved['meta']['machine']['threads'] == 1
     assert saved['results']['train']['top_ops'][0]['name']
     md = capsys.readouterr().out
     assert '### infer: median' in md and '### train: median' in md
