@@ -14,12 +14,17 @@ the plugin (``cbnet_mmdet``: registered components only).
   the fog sweep; ``tools/analysis_tools/test_robustness.py``.
 - :mod:`cbnet_lab.model_benchmark`: several detectors' speed, memory and
   FLOPs in one alternated run (``tools/analysis_tools/benchmark.py``), on
-  the measurement helpers of :mod:`cbnet_lab.benchmark` (timing, peak
-  memory, FLOPs, realistic proposals), which the profiler and the
-  component benchmarks use too.
+  the measurement helpers of :mod:`cbnet_lab.benchmark` (timing, timing
+  in alternation, peak memory, FLOPs, realistic proposals), which the
+  profiler and the component benchmarks use too.
 - :mod:`cbnet_lab.profiling`: where a detector's time goes (timed calls,
   one ``torch.profiler`` call with a range per part);
   ``tools/analysis_tools/profile_model.py``.
+- :mod:`cbnet_lab.component_benchmark`: parts of the model against what
+  they replace, timed in alternation: the custom kernels
+  (``benchmark_kernels.py``), the boundary-aware mask loss
+  (``benchmark_mask_loss.py``), MiT's positional encodings
+  (``benchmark_backbone.py``).
 - :mod:`cbnet_lab.metric_keys`: the reported metrics, named once.
 
 Installed with the plugin (the tools import it), never imported by it.

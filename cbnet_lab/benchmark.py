@@ -1,7 +1,8 @@
 """Helpers to build detectors from configs without weights and to measure
 their cost (time, peak memory, parameters, FLOPs) on synthetic inputs.
 
-Used by ``tools/analysis_tools/benchmark.py`` and the config tests. Nothing
+Used by :mod:`cbnet_lab.model_benchmark`, :mod:`cbnet_lab.profiling`,
+:mod:`cbnet_lab.component_benchmark` and the config tests. Nothing
 is downloaded: every ``Pretrained`` initialisation and ``load_from`` is
 dropped, so the models have random weights (speed and memory do not depend
 on the weight values; detections after NMS do, slightly, see
@@ -355,6 +356,42 @@ def time_calls(fn: Callable[[], object], repeats: int, warmup: int = 1,
         synchronize(device)
         times.append(time.perf_counter() - start)
     return times
+
+
+def time_alternately(calls: Dict[str, Callable[[], object]], repeats: int,
+                     warmup: int = 1, device: str = 'cpu',
+                     self_timed: bool = False,
+                     on_round: Optional[Callable[[int, dict], None]] = None
+                     ) -> Dict[str, list]:
+    """Measure several calls in alternation (``a, b, ..., a, b, ...``), so
+    that load changes on a shared machine hit them alike.
+
+    Args:
+        calls (dict[str, callable]): The measured work, by name.
+        repeats (int): Rounds with one measured call of each.
+        warmup (int): Unmeasured rounds first (kernels, allocator).
+        device (str): Synchronised around each timed call when CUDA.
+        self_timed (bool): The calls time themselves: what each returns
+            is recorded (e.g. a forward's and a whole step's seconds)
+            instead of its wall time (:func:`time_calls`).
+        on_round (callable, optional): ``on_round(i, measured)`` after
+            round ``i`` (from 0): a run cut short keeps what it measured.
+
+    Returns:
+        dict[str, list]: Per name, one duration (seconds) or return value
+        per round.
+    """
+    measured = {name: [] for name in calls}
+    for _ in range(warmup):
+        for fn in calls.values():
+            fn()
+    for i in range(repeats):
+        for name, fn in calls.items():
+            measured[name].append(
+                fn() if self_timed else time_calls(fn, 1, 0, device)[0])
+        if on_round is not None:
+            on_round(i, measured)
+    return measured
 
 
 def summarize(times: Sequence[float]) -> Dict[str, float]:

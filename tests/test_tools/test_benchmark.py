@@ -43,6 +43,21 @@ def test_summarize_matches_statistics():
         summarize([])
 
 
+def test_time_alternately_alternates_after_warm_up_rounds():
+    order, rounds = [], []
+    calls = {n: (lambda n=n: order.append(n) or len(order)) for n in 'ab'}
+    times = benchmark_utils.time_alternately(
+        calls, repeats=3, warmup=2,
+        on_round=lambda i, m: rounds.append((i, len(m['a']))))
+    assert order == list('ab' * 5)  # 2 warm-up rounds, then 3 timed
+    assert [len(v) for v in times.values()] == [3, 3]
+    assert all(t >= 0 for v in times.values() for t in v)
+    assert rounds == [(0, 1), (1, 2), (2, 3)]
+    # calls that time themselves: their return values are kept
+    own = benchmark_utils.time_alternately(calls, 2, 0, self_timed=True)
+    assert own == dict(a=[11, 13], b=[12, 14])
+
+
 def test_peak_memory_sees_a_large_allocation():
     if not osp.exists('/proc/self/statm'):
         pytest.skip('needs Linux /proc')

@@ -27,7 +27,7 @@ def test_b0_ope_cspe_and_chunked(tmp_path):
     assert results[1]['params_m'] == results[2]['params_m']
     # the device is recorded, CPU by default
     assert all(r['device'] == 'cpu' for r in results)
-    assert record['device'] == 'CPU'
+    assert record['device'] == 'cpu'
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason='needs CUDA')

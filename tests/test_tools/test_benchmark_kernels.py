@@ -12,7 +12,8 @@ def test_small_run_writes_every_kernel_against_its_stock_op(tmp_path):
     tool.main(['--size', '192', '384', '--channels', '4', '--rois', '4',
                '--repeats', '1', '--threads', '1', '--out', str(out)])
     result = json.loads(out.read_text())
-    assert result['machine']['device'] == 'cpu'
+    assert result['device'] == 'cpu'
+    assert result['machine']['threads'] == 1  # report.machine_info
     rows = result['rows']
     deform = [r for r in rows if r['kernel'].startswith('deform')]
     loss = [r for r in rows if r['kernel'] == 'boundary loss']
