@@ -25,6 +25,9 @@ the plugin (``cbnet_mmdet``: registered components only).
   (``benchmark_kernels.py``), the boundary-aware mask loss
   (``benchmark_mask_loss.py``), MiT's positional encodings
   (``benchmark_backbone.py``).
+- :mod:`cbnet_lab.proposal_quality`: what a trained RPN hands its RoI
+  heads (recall of the ground truth, share of positives);
+  ``tools/analysis_tools/proposal_quality.py``.
 - :mod:`cbnet_lab.metric_keys`: the reported metrics, named once.
 
 Installed with the plugin (the tools import it), never imported by it.
