@@ -95,26 +95,28 @@ class Bench:
         return call, wrapper
 
     def measure(self, calls, repeats, warmup, on_round=None):
-        """Alternate ``calls`` (name -> fn): ``repeats`` timed rounds, then
-        one more call of each for its peak memory (measuring memory changes
-        how the allocator works, see ``PeakMemory``, so it is never timed).
+        """Alternate ``calls`` (name -> fn, through
+        :func:`cbnet_lab.benchmark.time_alternately`): ``repeats`` timed
+        rounds after ``warmup`` untimed ones, then one more call of each
+        for its peak memory (measuring memory changes how the allocator
+        works, see ``PeakMemory``, so it is never timed).
         ``on_round(out)`` after every timed round: a run cut short (a time
         limit) keeps the rounds it finished.
         """
         B = self.B
         out = {n: dict(times=[], peak_mib=[]) for n in calls}
-        for _ in range(warmup):
-            for fn in calls.values():
-                fn()
-        for i in range(repeats):
-            for name, fn in calls.items():
-                out[name]['times'].append(
-                    B.time_calls(fn, 1, 0, self.device)[0])
+
+        def round_done(i, times):
+            for name in out:
+                out[name]['times'] = times[name]
             print(f'round {i + 1}/{repeats}: ' + ', '.join(
                 f'{n} {v["times"][-1]:.3f} s' for n, v in out.items()),
                   file=sys.stderr)
             if on_round is not None:
                 on_round(out)
+
+        B.time_alternately(calls, repeats, warmup, self.device,
+                           on_round=round_done)
         for name, fn in calls.items():
             with B.PeakMemory(self.device) as mem:
                 fn()
