@@ -1,7 +1,10 @@
 # Dehaze-then-detect on real fog, the peer paper's approach: the frozen
 # learned dehazer (trained on the generated pairs, see _base_/dehazers.py)
 # in front of the YOLOX-Tiny of this folder.
-_base_ = ['./yolox_tiny_1xb4-demo_voc-fog.py', './_base_/dehazers.py']
+_base_ = [
+    './yolox_tiny_1xb4-demo_voc-fog.py',
+    '../dehaze/_base_/attention_dehazer.py', './_base_/dehazers.py'
+]
 
 model = dict(
     data_preprocessor=dict(
