@@ -7,7 +7,8 @@
 # converted annotations (the pairs come from CBNetPairedFoggyDataset).
 _base_ = ['../_base_/default_runtime.py', './_base_/attention_dehazer.py']
 
-custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
+custom_imports = dict(
+    imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)
 
 data_root = 'data/cityscapes_like/'
 betas = [0.005, 0.01, 0.02]  # the released Foggy Cityscapes densities

@@ -8,4 +8,7 @@ _base_ = [
     './_base_/attention_dehazer.py'
 ]
 
+custom_imports = dict(
+    imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)
+
 model = dict(data_preprocessor=_base_.cityscapes_dehaze_preprocessor)

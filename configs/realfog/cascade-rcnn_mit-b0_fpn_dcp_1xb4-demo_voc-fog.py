@@ -5,6 +5,9 @@ _base_ = [
     '../dehaze/_base_/attention_dehazer.py', './_base_/dehazers.py'
 ]
 
+custom_imports = dict(
+    imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)
+
 model = dict(
     data_preprocessor=dict(
         _base_.dehaze_preprocessor, dehaze=_base_.fog_dcp,

@@ -27,7 +27,7 @@ DOCS = [osp.join(ROOT, 'README.md')] + sorted(
     glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True))
 #: Top-level folders of the repository a citation may start with.
 REPO_DIRS = ('cbnet_mmdet/', 'configs/', 'tools/', 'tests/', 'docs/',
-             'requirements/', '.ci/')
+             'requirements/', '.ci/', 'projects/')
 #: What the README snippet must be built on.
 STOCK_MASK_RCNN = 'mmdet::mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py'
 

@@ -175,6 +175,8 @@ def test_reference_condition_and_mixing(tmp_path):
 def save_untrained_dehazer(path):
     """An initialised demo dehazer where the realfog configs load it."""
     import os
+
+    import cbnet_dehaze  # noqa: F401  (registers the dehazer)
     cfg = Config.fromfile(osp.join(
         ROOT, 'configs', 'dehaze', '_base_', 'attention_dehazer.py'))
     torch.manual_seed(0)

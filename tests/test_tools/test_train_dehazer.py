@@ -11,8 +11,8 @@ import torch
 from mmdet.registry import MODELS
 from tool_helpers import load_tool
 
+from cbnet_dehaze.models.dehazers import load_dehazer_checkpoint
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
-from cbnet_mmdet.models.dehazers import load_dehazer_checkpoint
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 CONFIGS = osp.join(ROOT, 'configs', 'dehaze')

@@ -20,7 +20,7 @@ import os.path as osp
 import torch
 from mmdet.registry import MODELS
 
-import cbnet_mmdet  # noqa: F401  (registers the components)
+import cbnet_dehaze  # noqa: F401  (registers the dehazers)
 from cbnet_lab.benchmark import PeakMemory, summarize, time_calls
 
 DEHAZERS = dict(

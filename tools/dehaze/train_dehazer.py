@@ -28,7 +28,7 @@ import torch
 from mmengine.config import Config, DictAction
 from mmengine.runner import Runner
 
-import cbnet_mmdet  # noqa: F401  (registers the components)
+import cbnet_dehaze  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
 from cbnet_mmdet.utils.markdown import markdown_table
 

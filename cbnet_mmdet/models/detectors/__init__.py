@@ -1,8 +1,4 @@
-from .dehaze_data_preprocessor import CBNetDehazeDataPreprocessor
 from .distiller import CBNetDistiller
 from .paired_data_preprocessor import CBNetPairedDataPreprocessor
 
-__all__ = [
-    'CBNetDehazeDataPreprocessor', 'CBNetDistiller',
-    'CBNetPairedDataPreprocessor'
-]
+__all__ = ['CBNetDistiller', 'CBNetPairedDataPreprocessor']

@@ -4,8 +4,9 @@ from typing import Dict, List, Optional
 from mmengine.logging import MMLogger
 from torch import nn
 
-from ...utils.checkpoint_fit import compare_state_dicts, listed
-from ...utils.checkpoint_tools import read_checkpoint, unwrap_state_dict
+from cbnet_mmdet.utils.checkpoint_fit import compare_state_dicts, listed
+from cbnet_mmdet.utils.checkpoint_tools import (read_checkpoint,
+                                                unwrap_state_dict)
 
 #: Where a dehazer's weights sit inside the checkpoints this package
 #: writes: the dehazer training model (``dehazer.``), a detector with a

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import torch
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.evaluation.metrics import CBNetDehazeMetric
-from cbnet_mmdet.evaluation.metrics.dehaze_metric import beta_of, psnr
-from cbnet_mmdet.models.losses.ssim_loss import ssim
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.evaluation.metrics import CBNetDehazeMetric
+from cbnet_dehaze.evaluation.metrics.dehaze_metric import beta_of, psnr
+from cbnet_dehaze.models.losses.ssim_loss import ssim
 
 
 def sample(beta, pred, hazy, gt):

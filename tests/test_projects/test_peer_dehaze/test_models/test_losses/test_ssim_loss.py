@@ -5,8 +5,8 @@ import torch
 from mmdet.registry import MODELS
 from scipy import ndimage
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.losses.ssim_loss import ssim
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.losses.ssim_loss import ssim
 
 
 def numpy_ssim(x, y, sigma=1.5, radius=5, data_range=1.0):

@@ -5,8 +5,8 @@ from mmdet.registry import MODELS
 from mmdet.structures import DetDataSample
 from mmengine.optim import OptimWrapper
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.losses.ssim_loss import ssim
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.losses.ssim_loss import ssim
 
 DEHAZER = dict(type='CBNetAttentionDehazer', channels=8, num_blocks=1)
 

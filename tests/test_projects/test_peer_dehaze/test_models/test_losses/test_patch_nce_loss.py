@@ -4,8 +4,8 @@ import pytest
 import torch
 from mmdet.registry import MODELS
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.losses.patch_nce_loss import patch_nce
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.losses.patch_nce_loss import patch_nce
 
 
 def numpy_patch_nce(q, k, tau):

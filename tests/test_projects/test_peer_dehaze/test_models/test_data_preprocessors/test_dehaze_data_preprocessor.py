@@ -9,8 +9,8 @@ from mmdet.testing import demo_mm_inputs
 from mmengine.config import ConfigDict
 from torch import nn
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.dehazers import BaseDehazer
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.dehazers import BaseDehazer
 
 MEAN, STD = [123.675, 116.28, 103.53], [58.395, 57.12, 57.375]
 PLAIN = dict(type='DetDataPreprocessor', mean=MEAN, std=STD,

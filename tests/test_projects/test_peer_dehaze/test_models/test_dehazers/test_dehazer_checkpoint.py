@@ -6,8 +6,8 @@ import torch
 from mmdet.registry import MODELS
 from mmengine.logging import MMLogger
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.dehazers import load_dehazer_checkpoint
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.dehazers import load_dehazer_checkpoint
 
 
 def dehazer(seed, **kwargs):

@@ -4,8 +4,8 @@ import torch
 from mmdet.registry import MODELS
 from torch import nn
 
-import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.models.dehazers.attention_conv_block import (
+import cbnet_dehaze  # noqa: F401
+from cbnet_dehaze.models.dehazers.attention_conv_block import (
     ChannelAttentionBranch, WindowAttentionBranch)
 
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 from mmdet.registry import MODELS
 
-import cbnet_mmdet  # noqa: F401
+import cbnet_dehaze  # noqa: F401
 
 
 def psnr(x, y):

@@ -8,8 +8,8 @@ from mmdet.registry import METRICS
 from mmengine.evaluator import BaseMetric
 from mmengine.logging import MMLogger
 
+from cbnet_dehaze.models.losses.ssim_loss import ssim
 from cbnet_mmdet.datasets.cityscapes_paths import split_beta
-from cbnet_mmdet.models.losses.ssim_loss import ssim
 
 #: Highest PSNR reported (identical images), dB.
 MAX_PSNR = 100.0
