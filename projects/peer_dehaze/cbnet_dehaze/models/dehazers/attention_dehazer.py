@@ -27,7 +27,8 @@ class CBNetAttentionDehazer(BaseDehazer):
     reached by ``init_weights()``.
 
     Works at full resolution on any H, W (the window attention pads).
-    Cost grows linearly with pixels; see docs/dehaze.md for CPU latency.
+    Cost grows linearly with pixels; see projects/peer_dehaze/README.md
+    for CPU latency.
 
     Args:
         channels (int): Feature width. Defaults to 16 (small).

@@ -2,10 +2,14 @@
 # small default: 16 channels, 2 blocks) trained alone, supervised, on the
 # generated Cityscapes-like foggy/clear pairs (all three betas), and
 # evaluated by PSNR/SSIM per beta on foggy val against the clear images:
-#   python tools/dehaze/train_dehazer.py THIS_CONFIG --data-root DIR
+#   python projects/peer_dehaze/tools/train_dehazer.py THIS_CONFIG \
+#       --data-root DIR
 # Works on any dataset in the Cityscapes layout with leftImg8bit_foggy and
 # converted annotations (the pairs come from CBNetPairedFoggyDataset).
-_base_ = ['../_base_/default_runtime.py', './_base_/attention_dehazer.py']
+_base_ = [
+    '../../../configs/_base_/default_runtime.py',
+    './_base_/attention_dehazer.py'
+]
 
 custom_imports = dict(
     imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)

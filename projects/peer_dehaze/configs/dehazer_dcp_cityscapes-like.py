@@ -8,4 +8,4 @@ model = dict(
         _delete_=True,
         type='CBNetDarkChannelPrior',
         patch_size=15,  # He et al.
-        guided_radius=40))  # see the class docstring
+        guided_radius=40))  # see DarkChannelPrior's docstring

@@ -1,8 +1,8 @@
 # Dehaze-then-detect on real fog: the dark channel prior in front of the
 # Cascade R-CNN of this folder, which trains and tests on dehazed images.
 _base_ = [
-    './cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py',
-    '../dehaze/_base_/attention_dehazer.py', './_base_/dehazers.py'
+    '../../../../configs/realfog/cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py',
+    '../_base_/attention_dehazer.py', './_base_/dehazers.py'
 ]
 
 custom_imports = dict(

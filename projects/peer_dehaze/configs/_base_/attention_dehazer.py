@@ -4,8 +4,8 @@ dehazer = dict(
     type='CBNetAttentionDehazer',
     channels=16,  # small default; the paper gives no width
     num_blocks=2)
-# the demo dehazer: where tools/dehaze/train_dehazer.py writes the last
-# checkpoint of configs/dehaze/dehazer_attention_1xb4-600it_cityscapes-like.py
+# the demo dehazer: where projects/peer_dehaze/tools/train_dehazer.py writes
+# the last checkpoint of dehazer_attention_1xb4-600it_cityscapes-like.py
 dehaze_checkpoint = ('work_dirs/dehaze/'
                      'dehazer_attention_1xb4-600it_cityscapes-like/'
                      'iter_600.pth')
@@ -15,7 +15,7 @@ dehaze_preprocessor = dict(
     dehaze_checkpoint=dehaze_checkpoint,
     train_dehazer=False)  # frozen: the dehazer is a fixed front end
 # the same in front of the full-size detectors: the dehazer of
-# configs/dehaze/dehazer_attention_8xb4-20k_foggy-cityscapes.py
+# dehazer_attention_8xb4-20k_foggy-cityscapes.py
 cityscapes_dehaze_preprocessor = dict(
     dehaze_preprocessor,
     dehaze_checkpoint=('work_dirs/dehaze/'

@@ -1,5 +1,6 @@
-"""configs/dehaze: detector configs shaped like the demo, checkpoints where
-the dehazer tool writes them, each builds and steps on CPU."""
+"""The peer baseline's configs (projects/peer_dehaze/configs): detector
+configs shaped like the demo, checkpoints where the dehazer tool writes
+them, each builds and steps on CPU."""
 import glob
 import os.path as osp
 
@@ -10,10 +11,10 @@ from mmdet.testing import demo_mm_inputs
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
 
-import cbnet_mmdet  # noqa: F401
+import cbnet_dehaze  # noqa: F401
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-DEHAZE = osp.join(ROOT, 'configs', 'dehaze')
+ROOT = osp.abspath(osp.join(osp.dirname(__file__), *['..'] * 4))
+DEHAZE = osp.join(ROOT, 'projects', 'peer_dehaze', 'configs')
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 DEMO_DETECTORS = sorted(glob.glob(osp.join(DEHAZE, '*demo*.py')))

@@ -2,8 +2,8 @@
 # learned dehazer (trained on the generated pairs, see _base_/dehazers.py)
 # in front of the YOLOX-Tiny of this folder.
 _base_ = [
-    './yolox_tiny_1xb4-demo_voc-fog.py',
-    '../dehaze/_base_/attention_dehazer.py', './_base_/dehazers.py'
+    '../../../../configs/realfog/yolox_tiny_1xb4-demo_voc-fog.py',
+    '../_base_/attention_dehazer.py', './_base_/dehazers.py'
 ]
 
 custom_imports = dict(

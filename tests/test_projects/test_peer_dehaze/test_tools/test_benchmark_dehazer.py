@@ -1,4 +1,4 @@
-"""tools/dehaze/benchmark_dehazer.py on tiny images."""
+"""projects/peer_dehaze/tools/benchmark_dehazer.py on tiny images."""
 import json
 
 import pytest
@@ -7,7 +7,7 @@ from tool_helpers import load_tool
 
 @pytest.fixture(scope='module')
 def tool():
-    return load_tool('dehaze/benchmark_dehazer.py')
+    return load_tool('projects/peer_dehaze/tools/benchmark_dehazer.py')
 
 
 def test_times_both_dehazers_per_size(tool, tmp_path):

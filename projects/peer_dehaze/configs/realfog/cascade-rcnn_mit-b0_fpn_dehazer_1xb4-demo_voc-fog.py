@@ -2,8 +2,8 @@
 # generated pairs, see _base_/dehazers.py) in front of the Cascade R-CNN of
 # this folder, which trains and tests on dehazed images.
 _base_ = [
-    './cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py',
-    '../dehaze/_base_/attention_dehazer.py', './_base_/dehazers.py'
+    '../../../../configs/realfog/cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py',
+    '../_base_/attention_dehazer.py', './_base_/dehazers.py'
 ]
 
 custom_imports = dict(

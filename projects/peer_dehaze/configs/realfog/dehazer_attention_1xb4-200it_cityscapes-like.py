@@ -1,15 +1,15 @@
 # The learned dehazer in front of the real-fog detectors (set realfog): the
-# demo CBNetAttentionDehazer of configs/dehaze/, trained the same way on the
+# demo CBNetAttentionDehazer of the project, trained the same way on the
 # generated clear/foggy pairs (never on real fog) but shorter, the run of
-# docs/dehaze.md: 200 iterations of 4 crops of 64x64 (about 10 min on a
+# the project's README: 200 iterations of 4 crops of 64x64 (about 10 min on a
 # loaded 2-core CPU, against 23 min for the 600 of 128x128):
 #   python tools/misc/generate_cityscapes_like.py data/cityscapes_like \
 #       --convert
-#   python tools/dehaze/train_dehazer.py THIS_CONFIG \
+#   python projects/peer_dehaze/tools/train_dehazer.py THIS_CONFIG \
 #       --data-root data/cityscapes_like
 # writes work_dirs/dehaze/dehazer_attention_1xb4-200it_cityscapes-like/
-# iter_200.pth, which configs/realfog/_base_/dehazers.py loads.
-_base_ = '../dehaze/dehazer_attention_1xb4-600it_cityscapes-like.py'
+# iter_200.pth, which _base_/dehazers.py loads.
+_base_ = '../dehazer_attention_1xb4-600it_cityscapes-like.py'
 
 max_iters = 200
 crop_size = (64, 64)

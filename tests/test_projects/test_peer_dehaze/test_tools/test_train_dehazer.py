@@ -1,4 +1,5 @@
-"""tools/dehaze/train_dehazer.py on the tiny generated dataset."""
+"""projects/peer_dehaze/tools/train_dehazer.py on the tiny generated
+dataset."""
 import glob
 import json
 import math
@@ -14,14 +15,14 @@ from tool_helpers import load_tool
 from cbnet_dehaze.models.dehazers import load_dehazer_checkpoint
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
-CONFIGS = osp.join(ROOT, 'configs', 'dehaze')
+ROOT = osp.abspath(osp.join(osp.dirname(__file__), *['..'] * 4))
+CONFIGS = osp.join(ROOT, 'projects', 'peer_dehaze', 'configs')
 LEARNED = osp.join(CONFIGS, 'dehazer_attention_1xb4-600it_cityscapes-like.py')
 
 
 @pytest.fixture(scope='module')
 def tool():
-    return load_tool('dehaze/train_dehazer.py')
+    return load_tool('projects/peer_dehaze/tools/train_dehazer.py')
 
 
 def hazy_psnr_from_files(root, beta):

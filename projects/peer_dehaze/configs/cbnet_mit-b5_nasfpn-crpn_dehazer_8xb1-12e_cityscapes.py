@@ -1,9 +1,9 @@
 # Dehaze-then-detect with the headline CBNet (MiT-B5, 12 epochs on clear
 # Cityscapes) behind a frozen CBNetAttentionDehazer trained on Foggy
-# Cityscapes with configs/dehaze/dehazer_attention_8xb4-20k_foggy-cityscapes.py.
+# Cityscapes with dehazer_attention_8xb4-20k_foggy-cityscapes.py.
 # Evaluate clear and foggy with tools/analysis_tools/ap_drop.py.
 _base_ = [
-    '../cbnet/cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py',
+    '../../../configs/cbnet/cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py',
     './_base_/attention_dehazer.py'
 ]
 

@@ -2,7 +2,8 @@
 
 Usage::
 
-    OMP_NUM_THREADS=1 python tools/dehaze/benchmark_dehazer.py \
+    OMP_NUM_THREADS=1 python \
+        projects/peer_dehaze/tools/benchmark_dehazer.py \
         [--sizes 512 1024 1024 2048] [--repeats 3] [--threads 1] \
         [--device cpu] [--out work_dirs/dehaze/latency.json]
 

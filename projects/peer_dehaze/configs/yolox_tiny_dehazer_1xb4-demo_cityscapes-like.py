@@ -4,7 +4,7 @@
 # says why YOLOX stands in for the paper's YOLOv8). Boxes only: mask AP and
 # mIoU are not reported (the harness shows '-'). Fair-fight entry (e).
 _base_ = [
-    '../demo/_base_/yolox_tiny_1xb4-demo_cityscapes-like.py',
+    '../../../configs/demo/_base_/yolox_tiny_1xb4-demo_cityscapes-like.py',
     './_base_/attention_dehazer.py'
 ]
 

@@ -2,11 +2,13 @@
 
 Usage::
 
-    python tools/dehaze/train_dehazer.py CONFIG [--data-root DIR] \
-        [--work-dir DIR] [--max-iters N] [--betas 0.005 0.01 0.02] \
+    python projects/peer_dehaze/tools/train_dehazer.py CONFIG \
+        [--data-root DIR] [--work-dir DIR] [--max-iters N] \
+        [--betas 0.005 0.01 0.02] \
         [--checkpoint CKPT] [--num-vis 1] [--cfg-options KEY=VALUE ...]
 
-``CONFIG`` is a ``CBNetDehazeModel`` config (``configs/dehaze/dehazer_*``).
+``CONFIG`` is a ``CBNetDehazeModel`` config
+(``projects/peer_dehaze/configs/dehazer_*``).
 The dehazer is trained with MMEngine's runner (log every ``logger``
 interval, checkpoint at the end; dehazers without parameters such as the
 dark channel prior, or ``--max-iters 0``, skip training), then tested on
