@@ -45,8 +45,8 @@ def load_dehazer_checkpoint(dehazer: nn.Module,
     """Load the weights of a dehazer from a checkpoint file.
 
     The file may be an MMEngine checkpoint of the dehazer training model
-    (``tools/dehaze/train_dehazer.py``), of a detector with a dehazing data
-    preprocessor, or a bare state dict. It is read by
+    (``projects/peer_dehaze/tools/train_dehazer.py``), of a detector with a
+    dehazing data preprocessor, or a bare state dict. It is read by
     :func:`~cbnet_mmdet.utils.checkpoint_tools.read_checkpoint`
     (``torch.load(weights_only=True)`` with the package's allow-list,
     errors naming the file). Tensors whose name and shape fit are copied.
