@@ -44,7 +44,9 @@ from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
 from .report import machine_line, plot, to_markdown
 from .metric_keys import columns as metric_columns
 
-#: Built-in sets: (recipe name, config path relative to the configs root).
+#: Built-in sets: (recipe name, config path relative to the configs root;
+#: the peer baseline's configs are under ``../projects/peer_dehaze/configs``,
+#: which the wheel carries beside ``configs`` in ``cbnet_mmdet/.mim``).
 RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     # the paper's neck, RPN, RoI head and loss against MMDet's stock
     # models on the same MiT-B0 trunk, widths, data and schedule
@@ -68,9 +70,9 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     ],
     # issue 15, the fair fight on foggy val: robust features and
     # distillation (CBNet's road) against dehaze-then-detect (YOLO-Vehicle-
-    # Pro's), every detector at demo size; the dehazer is
-    # configs/dehaze/dehazer_attention_1xb4-600it_cityscapes-like.py,
-    # trained first with tools/dehaze/train_dehazer.py
+    # Pro's), every detector at demo size; the dehazer is projects/
+    # peer_dehaze/configs/dehazer_attention_1xb4-600it_cityscapes-like.py,
+    # trained first with projects/peer_dehaze/tools/train_dehazer.py
     'dehaze': [
         ('(a) CBNet, clear',
          'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
@@ -78,10 +80,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'edge_1xb4-demo_foggy-cityscapes-like.py'),
         ('(c) CBNet-DD', 'demo/ablation/cbnet-dd_mit-b0_ablation-shape-'
          'edge-kd_1xb4-demo_foggy-cityscapes-like.py'),
-        ('(d) dehazer + CBNet, clear',
-         'dehaze/cbnet_mit-b0_nasfpn_dehazer_1xb4-demo_cityscapes-like.py'),
-        ('(e) dehazer + YOLOX-Tiny, clear',
-         'dehaze/yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py'),
+        ('(d) dehazer + CBNet, clear', '../projects/peer_dehaze/configs/'
+         'cbnet_mit-b0_nasfpn_dehazer_1xb4-demo_cityscapes-like.py'),
+        ('(e) dehazer + YOLOX-Tiny, clear', '../projects/peer_dehaze/configs/'
+         'yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py'),
     ],
     # issue 18: the demo CBNet before / after the speed settings, the
     # number of NAS-FPN stacks, and the test-time proposal count (the same
@@ -157,14 +159,15 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'realfog/cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py'),
         ('Cascade R-CNN',
          'realfog/cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py'),
-        ('DCP + Cascade R-CNN',
-         'realfog/cascade-rcnn_mit-b0_fpn_dcp_1xb4-demo_voc-fog.py'),
-        ('dehazer + Cascade R-CNN',
+        ('DCP + Cascade R-CNN', '../projects/peer_dehaze/configs/realfog/'
+         'cascade-rcnn_mit-b0_fpn_dcp_1xb4-demo_voc-fog.py'),
+        ('dehazer + Cascade R-CNN', '../projects/peer_dehaze/configs/'
          'realfog/cascade-rcnn_mit-b0_fpn_dehazer_1xb4-demo_voc-fog.py'),
         ('YOLOX-Tiny', 'realfog/yolox_tiny_1xb4-demo_voc-fog.py'),
-        ('DCP + YOLOX-Tiny', 'realfog/yolox_tiny_dcp_1xb4-demo_voc-fog.py'),
-        ('dehazer + YOLOX-Tiny',
-         'realfog/yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
+        ('DCP + YOLOX-Tiny', '../projects/peer_dehaze/configs/realfog/'
+         'yolox_tiny_dcp_1xb4-demo_voc-fog.py'),
+        ('dehazer + YOLOX-Tiny', '../projects/peer_dehaze/configs/realfog/'
+         'yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
     ],
     # proposal recall of the three RPN heads
     'rpn': [

@@ -37,11 +37,13 @@ want=$(stamp_now | sha256sum | cut -d' ' -f1)
 # The project itself is installed as a regular (not editable) package:
 # `mim train cbnet_mmdet` runs `<site-packages>/cbnet_mmdet/.mim/tools/
 # train.py`, which an editable install does not have. Tests run from the
-# source tree (`python -m pytest` puts it first on sys.path). The sources go
-# into a second stamp, so an edited tree is reinstalled (seconds).
+# source tree (`python -m pytest` puts it first on sys.path, pytest's
+# `pythonpath` the project package cbnet_dehaze). The sources go into a
+# second stamp, so an edited tree is reinstalled (seconds).
 PROJECT_STAMP="$VENV/.cbnet_mmdet_project_stamp"
 project_now() {
-  (cd "$ROOT" && find cbnet_mmdet configs tools pyproject.toml README.md \
+  (cd "$ROOT" && find cbnet_mmdet cbnet_lab projects configs tools \
+     pyproject.toml README.md \
      -name __pycache__ -prune -o -type f -print 2>/dev/null \
      | LC_ALL=C sort | xargs sha256sum) || true
 }

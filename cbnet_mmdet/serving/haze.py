@@ -1,14 +1,14 @@
 """Per-frame haze estimate: the dark channel prior's transmission.
 
-Reuses :class:`cbnet_mmdet.models.dehazers.CBNetDarkChannelPrior`
-(atmospheric light and refined transmission ``t``); the statistic is the
-mean of ``t`` over the frame: near 1 on clear frames, lower in fog.
+Reuses :class:`cbnet_mmdet.models.utils.dark_channel.DarkChannelPrior`
+(atmospheric light and refined transmission ``t``, the estimates the peer
+baseline's dehazer also removes haze with); the statistic is the mean of
+``t`` over the frame: near 1 on clear frames, lower in fog.
 """
 import numpy as np
 import torch
 
-from cbnet_mmdet.models.dehazers.dark_channel_prior import \
-    CBNetDarkChannelPrior
+from cbnet_mmdet.models.utils.dark_channel import DarkChannelPrior
 
 
 class HazeEstimator:
@@ -18,7 +18,7 @@ class HazeEstimator:
         max_side (int): the frame is subsampled (by striding) until its
             longer side is at most this, pixels, to keep the edge cost
             low. Defaults to 256.
-        **dcp_kwargs: arguments of ``CBNetDarkChannelPrior``.
+        **dcp_kwargs: arguments of ``DarkChannelPrior``.
     """
 
     def __init__(self, max_side: int = 256, **dcp_kwargs) -> None:
@@ -26,7 +26,7 @@ class HazeEstimator:
             raise ValueError(f'HazeEstimator: max_side must be >= 1, got '
                              f'{max_side}')
         self.max_side = max_side
-        self.dcp = CBNetDarkChannelPrior(**dcp_kwargs)
+        self.dcp = DarkChannelPrior(**dcp_kwargs)
 
     def __call__(self, img_bgr: np.ndarray) -> float:
         if img_bgr.ndim != 3 or img_bgr.shape[2] != 3 or img_bgr.size == 0:

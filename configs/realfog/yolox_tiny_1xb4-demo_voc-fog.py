@@ -1,15 +1,10 @@
 # A YOLO-family detector on real fog (compare_recipes.py --set realfog):
-# MMDet's YOLOX-Tiny as configured for the dehaze comparison
-# (configs/dehaze/yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py) without
-# the dehazer: raw 0-255 BGR in, like MMDet's YOLOX.
+# MMDet's YOLOX-Tiny at demo size, the one of the dehaze comparison
+# without a dehazer: raw 0-255 BGR in, like MMDet's YOLOX.
 _base_ = [
-    '../dehaze/yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py',
+    '../demo/_base_/yolox_tiny_1xb4-demo_cityscapes-like.py',
     './_base_/voc-fog_box.py'
 ]
-
-model = dict(
-    data_preprocessor=dict(
-        _delete_=True, type='DetDataPreprocessor', pad_size_divisor=32))
 
 # the real-fog data in place of the demo's (see _base_/voc-fog_box.py)
 data_root = _base_.fog_data_root

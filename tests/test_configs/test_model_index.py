@@ -9,10 +9,13 @@ from mmengine.infer import BaseInferencer
 from modelindex import load
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+#: The configs of the plugin and of the projects (the peer baseline's).
 SHIPPED = sorted(
     osp.relpath(p, ROOT)
     for p in glob.glob(osp.join(ROOT, 'configs', '**', '*.py'),
-                       recursive=True) if '_base_' not in p)
+                       recursive=True) +
+    glob.glob(osp.join(ROOT, 'projects', '*', 'configs', '**', '*.py'),
+              recursive=True) if '_base_' not in p)
 
 
 @pytest.fixture(scope='module')

@@ -1,5 +1,6 @@
-"""configs/realfog: box-only recipes on a VOC real-fog folder, the demo's
-trunk and budget, dehazers where the set says."""
+"""The realfog set: box-only recipes on a VOC real-fog folder, the demo's
+trunk and budget, dehazers where the set says (configs/realfog, and the
+dehazer + detector recipes of projects/peer_dehaze/configs/realfog)."""
 import glob
 import os.path as osp
 
@@ -10,15 +11,17 @@ from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
+DEHAZE_REALFOG = osp.join(ROOT, 'projects', 'peer_dehaze', 'configs',
+                          'realfog')
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 RECIPES = dict(rc.resolve_recipes('realfog'))
-DEHAZER = osp.join(REALFOG, 'dehazer_attention_1xb4-200it_cityscapes-like.py')
 
 
 def test_every_recipe_config_of_the_folder_is_in_the_set():
-    shipped = set(glob.glob(osp.join(REALFOG, '*_voc-fog.py')))
-    assert shipped == set(RECIPES.values())
+    shipped = set(glob.glob(osp.join(REALFOG, '*_voc-fog.py')) +
+                  glob.glob(osp.join(DEHAZE_REALFOG, '*_voc-fog.py')))
+    assert shipped == {osp.normpath(p) for p in RECIPES.values()}
     assert len(RECIPES) == 7
 
 
@@ -62,30 +65,3 @@ def test_recipe_is_box_only_on_the_real_fog_splits(name):
         assert not pre.train_dehazer
     else:
         assert pre.type == 'DetDataPreprocessor'
-
-
-def test_learned_dehazer_is_where_its_config_writes_it():
-    """The realfog dehazer config trains the demo dehazer on the generated
-    pairs with 64x64 crops for 200 iterations; train_dehazer.py writes
-    work_dirs/dehaze/<config name>/iter_<max_iters>.pth, which the
-    detectors load."""
-    cfg = Config.fromfile(DEHAZER)
-    demo = Config.fromfile(osp.join(
-        ROOT, 'configs', 'dehaze',
-        'dehazer_attention_1xb4-600it_cityscapes-like.py'))
-    assert cfg.model == demo.model
-    assert cfg.train_cfg.max_iters == 200
-    assert cfg.default_hooks.checkpoint.interval == 200
-    assert cfg.param_scheduler[-1].end == 200
-    datasets = cfg.train_dataloader.dataset.datasets
-    assert [d.beta for d in datasets] == [0.005, 0.01, 0.02]
-    for d in datasets:
-        assert d.type == 'CBNetPairedFoggyDataset'
-        crops = [t for t in d.pipeline if t.type == 'RandomCrop']
-        assert [t.crop_size for t in crops] == [(64, 64)]
-    name = osp.splitext(osp.basename(DEHAZER))[0]
-    for recipe in ('dehazer + Cascade R-CNN', 'dehazer + YOLOX-Tiny'):
-        pre = Config.fromfile(RECIPES[recipe]).model.data_preprocessor
-        assert pre.dehaze_checkpoint == \
-            f'work_dirs/dehaze/{name}/iter_200.pth'
-        assert pre.dehaze == demo.model.dehazer

@@ -2,10 +2,11 @@
 
 * every repository file a doc cites (in backticks or as a link) exists in
   the repository: no doc points outside it or at a file we do not ship;
-* every documented ``python tools/...`` command line is accepted by that
-  tool's argument parser, and the ``tools/train.py`` ones build their
-  config and visualiser (the TensorBoard command of
-  docs/visualization.md once passed its backends as strings);
+* every documented ``python tools/...`` (or ``python projects/NAME/tools/
+  ...``) command line is accepted by that tool's argument parser, and the
+  ``tools/train.py`` ones build their config and visualiser (the
+  TensorBoard command of docs/visualization.md once passed its backends
+  as strings);
 * the README's "single components" snippet builds under MMDetection's
   stock Mask R-CNN through ``_base_`` inheritance, as a user would use it.
 """
@@ -20,14 +21,15 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
-from tool_helpers import load_tool
+from tool_helpers import load_tool, tool_file
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DOCS = [osp.join(ROOT, 'README.md')] + sorted(
-    glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True))
+    glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True) +
+    glob.glob(osp.join(ROOT, 'projects', '*', 'README.md')))
 #: Top-level folders of the repository a citation may start with.
 REPO_DIRS = ('cbnet_mmdet/', 'configs/', 'tools/', 'tests/', 'docs/',
-             'requirements/', '.ci/')
+             'requirements/', '.ci/', 'projects/')
 #: What the README snippet must be built on.
 STOCK_MASK_RCNN = 'mmdet::mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py'
 
@@ -144,7 +146,9 @@ PLACEHOLDERS = {
 
 def tool_commands():
     """(doc, tool path under tools/, argv) of every documented
-    ``python tools/X.py ...`` command. Optional parts written ``[...]``
+    ``python tools/X.py ...`` command (a project's, ``python
+    projects/NAME/tools/X.py``, keeps its path from the repository root,
+    as ``tool_helpers.load_tool`` takes it). Optional parts written ``[...]``
     are included, without their brackets; of alternatives ``a|b`` the
     first; loop variables and :data:`PLACEHOLDERS` get a value."""
     out = []
@@ -160,9 +164,10 @@ def tool_commands():
                 except ValueError:
                     continue
                 for i, word in enumerate(words[:-1]):
+                    script = words[i + 1]
                     if word in ('python', 'python3') and \
-                            words[i + 1].startswith('tools/') and \
-                            words[i + 1].endswith('.py'):
+                            re.match(r'(projects/[^/]+/)?tools/', script) \
+                            and script.endswith('.py'):
                         argv = []
                         for arg in words[i + 2:]:
                             if arg in ('&&', '&', '|', ';', '>'):
@@ -172,8 +177,9 @@ def tool_commands():
                             arg = PLACEHOLDERS.get(arg, arg)
                             if arg and arg != '...':
                                 argv.append(arg)
-                        out.append((_rel(doc), words[i + 1][len('tools/'):],
-                                    argv))
+                        if script.startswith('tools/'):
+                            script = script[len('tools/'):]
+                        out.append((_rel(doc), script, argv))
     return out
 
 
@@ -184,7 +190,8 @@ def test_docs_document_tool_commands():
     tools = {tool for _, tool, _ in COMMANDS}
     # the scanner finds the commands of the main tools
     assert {'train.py', 'test.py', 'analysis_tools/ap_drop.py',
-            'model_converters/extract_student.py'} <= tools, tools
+            'model_converters/extract_student.py',
+            'projects/peer_dehaze/tools/train_dehazer.py'} <= tools, tools
 
 
 @pytest.mark.parametrize(
@@ -192,8 +199,8 @@ def test_docs_document_tool_commands():
     ids=[f'{d}:{t}:{i}' for i, (d, t, _) in enumerate(COMMANDS)])
 def test_documented_command_parses(doc, tool, argv, restore_environ,
                                    monkeypatch):
-    assert osp.isfile(osp.join(ROOT, 'tools', tool)), \
-        f'{doc} documents tools/{tool}, which does not exist'
+    assert osp.isfile(tool_file(tool)), \
+        f'{doc} documents {_rel(tool_file(tool))}, which does not exist'
     module = load_tool(tool)
     # the parser reads sys.argv where parse_args takes no argv
     monkeypatch.setattr(sys, 'argv', [f'tools/{tool}'] + argv)

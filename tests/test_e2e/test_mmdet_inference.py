@@ -30,11 +30,13 @@ import cbnet_mmdet  # noqa: F401
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
-# every detector config (configs/dehaze/dehazer_*.py train a dehazer alone:
-# no detector, nothing for DetInferencer)
+# every detector config, the projects' too (the peer baseline's
+# dehazer_*.py train a dehazer alone: no detector, nothing for DetInferencer)
 SHIPPED = sorted(
     p for p in glob.glob(osp.join(ROOT, 'configs', '**', '*.py'),
-                         recursive=True)
+                         recursive=True) +
+    glob.glob(osp.join(ROOT, 'projects', '*', 'configs', '**', '*.py'),
+              recursive=True)
     if '_base_' not in p and not osp.basename(p).startswith('dehazer_'))
 
 

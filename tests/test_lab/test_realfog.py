@@ -177,8 +177,11 @@ def test_reference_condition_and_mixing(tmp_path):
 def save_untrained_dehazer(path):
     """An initialised demo dehazer where the realfog configs load it."""
     import os
-    cfg = Config.fromfile(osp.join(
-        ROOT, 'configs', 'dehaze', '_base_', 'attention_dehazer.py'))
+
+    import cbnet_dehaze  # noqa: F401  (registers the dehazer)
+    cfg = Config.fromfile(osp.join(ROOT, 'projects', 'peer_dehaze',
+                                   'configs', '_base_',
+                                   'attention_dehazer.py'))
     torch.manual_seed(0)
     dehazer = MODELS.build(cfg.dehazer)
     os.makedirs(osp.dirname(path), exist_ok=True)
@@ -194,7 +197,8 @@ def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys,
     bar plot are written; a rerun reads the runs back."""
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
     dehazer = Config.fromfile(osp.join(
-        REALFOG, '_base_', 'dehazers.py')).fog_dehazer_checkpoint
+        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
+        'dehazers.py')).fog_dehazer_checkpoint
     save_untrained_dehazer(str(tmp_path / dehazer))
     tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'realfog', '--data-root', fog_root, '--seeds', '0',

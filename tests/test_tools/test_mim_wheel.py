@@ -79,11 +79,27 @@ def test_wheel_carries_mim_configs_and_tools(wheel):
                  'cbnet_mmdet/.mim/configs/demo/metafile.yml',
                  # the lab the .mim tools import (compare_recipes.py ...)
                  'cbnet_lab/recipe_comparison.py',
-                 'cbnet_lab/benchmark.py'):
+                 'cbnet_lab/benchmark.py',
+                 # the peer baseline: its package at the top level, its
+                 # configs (listed in the model index) and command lines
+                 # where the repository has them, under .mim
+                 'cbnet_dehaze/__init__.py',
+                 'cbnet_dehaze/models/dehazers/attention_dehazer.py',
+                 'cbnet_mmdet/.mim/projects/peer_dehaze/configs/'
+                 'metafile.yml',
+                 'cbnet_mmdet/.mim/projects/peer_dehaze/configs/_base_/'
+                 'attention_dehazer.py',
+                 'cbnet_mmdet/.mim/projects/peer_dehaze/configs/realfog/'
+                 'yolox_tiny_dcp_1xb4-demo_voc-fog.py',
+                 'cbnet_mmdet/.mim/projects/peer_dehaze/tools/'
+                 'train_dehazer.py'):
         assert path in names, path
-    # real files, not links, and no byte code or tests
+    # real files, not links, and no byte code or tests; the project's
+    # package only once, as cbnet_dehaze
     assert not any('__pycache__' in n or n.startswith('tests/')
                    for n in names)
+    assert not any(n.startswith('cbnet_mmdet/.mim/projects/peer_dehaze/'
+                                'cbnet_dehaze') for n in names)
 
 
 @pytest.mark.slow  # builds a wheel and trains 4 iterations: ~1-2 min
@@ -141,7 +157,10 @@ def test_mim_search_lists_the_model_index(wheel, tmp_path):
                  'cbnet_mit-b5_ablation-ce_foggy-cityscapes',
                  'cbnet_mit-b5_ablation-shape-edge-kd_foggy-cityscapes',
                  'yolox_s_8xb8-300e_cityscapes',
-                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like'):
+                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like',
+                 # the peer baseline's (projects/peer_dehaze)
+                 'yolox_tiny_dehazer_1xb4-demo_cityscapes-like',
+                 'yolox_tiny_dcp_1xb4-demo_voc-fog'):
         assert f"'{name}'" in out.stdout, name
     out = subprocess.run(
         [mim, 'search', 'cbnet_mmdet', '--config', 'cbnet_cityscapes'],

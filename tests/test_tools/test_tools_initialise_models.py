@@ -48,6 +48,8 @@ LOSSES_ONLY = set()
 @pytest.mark.parametrize(
     'path', sorted(
         glob.glob(osp.join(ROOT, 'tools', '**', '*.py'), recursive=True) +
+        glob.glob(osp.join(ROOT, 'projects', '*', 'tools', '**', '*.py'),
+                  recursive=True) +
         glob.glob(osp.join(ROOT, 'cbnet_lab', '**', '*.py'),
                   recursive=True)),
     ids=lambda p: osp.relpath(p, ROOT))

@@ -1,5 +1,6 @@
-"""Helpers of the tool smoke tests: load a script of ``tools/`` as a module
-(the tools are not a package); a checkpoint of the demo model."""
+"""Helpers of the tool smoke tests: load a script of ``tools/`` (or of a
+project's ``tools/``) as a module (the tools are not a package); a
+checkpoint of the demo model."""
 import importlib.util
 import os.path as osp
 
@@ -8,16 +9,25 @@ DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 
 
+def tool_file(relpath: str) -> str:
+    """``tools/{relpath}``, or ``{relpath}`` from the repository root for a
+    project's command line (``projects/NAME/tools/...``)."""
+    if relpath.startswith('projects/'):
+        return osp.join(REPO, relpath)
+    return osp.join(REPO, 'tools', relpath)
+
+
 def load_tool(relpath: str):
-    """Import ``tools/{relpath}`` under a private module name.
+    """Import a command line under a private module name.
 
     Args:
         relpath (str): Path under ``tools/``, e.g.
-            ``'analysis_tools/benchmark_mask_loss.py'``.
+            ``'analysis_tools/benchmark_mask_loss.py'``, or a project's
+            from the repository root, e.g.
+            ``'projects/peer_dehaze/tools/train_dehazer.py'``.
     """
     name = 'cbnet_tools_' + relpath.replace('/', '_')[:-3]
-    spec = importlib.util.spec_from_file_location(
-        name, osp.join(REPO, 'tools', relpath))
+    spec = importlib.util.spec_from_file_location(name, tool_file(relpath))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

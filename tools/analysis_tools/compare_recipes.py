@@ -14,10 +14,12 @@ its folder) is a test-time variant: not trained, it tests the weights that
 recipe trained for each seed (list that recipe first) under its own test
 settings.
 
-Built-in sets (configs under configs/, demo-size, one MiT-B0 trunk):
+Built-in sets (configs under configs/, the dehazer + detector ones under
+projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
   arch      CBNet vs MMDet's stock Cascade Mask R-CNN and Mask R-CNN
   ablation  the four rows of the paper's Table 3 (trained on foggy images)
-  dehaze    CBNet on fog vs dehazer + detector (train the dehazer first)
+  dehaze    CBNet on fog vs dehazer + detector (train the dehazer first:
+            projects/peer_dehaze/README.md)
   speed     the speed settings of issue 18: light neck, 3 / 7 stacks,
             1000 proposals at test (a test-time variant)
   rpn       CBNet's Cascade RPN vs RPNHead vs MMDet's CascadeRPNHead

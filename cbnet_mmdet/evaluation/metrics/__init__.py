@@ -1,4 +1,3 @@
-from .dehaze_metric import CBNetDehazeMetric
 from .instance_miou_metric import CBNetInstanceMIoUMetric
 
-__all__ = ['CBNetDehazeMetric', 'CBNetInstanceMIoUMetric']
+__all__ = ['CBNetInstanceMIoUMetric']

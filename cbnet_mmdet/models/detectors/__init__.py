@@ -1,4 +1,3 @@
-from .dehaze_data_preprocessor import CBNetDehazeDataPreprocessor
 from .distiller import CBNetDistiller
 
-__all__ = ['CBNetDehazeDataPreprocessor', 'CBNetDistiller']
+__all__ = ['CBNetDistiller']

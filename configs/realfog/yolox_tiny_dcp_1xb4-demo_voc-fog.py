@@ -1,8 +1,0 @@
-# Dehaze-then-detect on real fog: the dark channel prior in front of the
-# YOLOX-Tiny of this folder, which trains and tests on dehazed images.
-_base_ = ['./yolox_tiny_1xb4-demo_voc-fog.py', './_base_/dehazers.py']
-
-model = dict(
-    data_preprocessor=dict(
-        _base_.dehaze_preprocessor, dehaze=_base_.fog_dcp,
-        dehaze_checkpoint=None))

@@ -1,0 +1,3 @@
+from .metrics import CBNetDehazeMetric
+
+__all__ = ['CBNetDehazeMetric']

@@ -1,0 +1,3 @@
+from .dehaze_metric import CBNetDehazeMetric
+
+__all__ = ['CBNetDehazeMetric']

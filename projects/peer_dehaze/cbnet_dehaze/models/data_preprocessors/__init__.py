@@ -1,0 +1,3 @@
+from .dehaze_data_preprocessor import CBNetDehazeDataPreprocessor
+
+__all__ = ['CBNetDehazeDataPreprocessor']
