@@ -21,7 +21,7 @@ from typing import Dict, List, Optional, Sequence
 from mmengine.config import Config
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint_fit import require_checkpoint_fit
+from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
 from cbnet_mmdet.utils.markdown import markdown_table
 
 from .metric_keys import columns

@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 
 from mmengine.config import Config
 
-from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
+from cbnet_mmdet.utils.checkpoint.files import last_checkpoint_in
 
 
 def configs_root() -> str:

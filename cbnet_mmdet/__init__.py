@@ -8,11 +8,11 @@ from .version import __version__
 
 check_versions()
 
-from .utils.checkpoint_safe_globals import allow_mmengine_checkpoints  # noqa: E402,E501,isort:skip
+from .utils.checkpoint.safe_globals import allow_mmengine_checkpoints  # noqa: E402,E501,isort:skip
 
 allow_mmengine_checkpoints()
 
-from .utils.checkpoint_file import use_checked_local_loader  # noqa: E402,E501,isort:skip
+from .utils.checkpoint.file_check import use_checked_local_loader  # noqa: E402,E501,isort:skip
 
 use_checked_local_loader()  # a PNG passed as checkpoint: a clear error
 

@@ -1,4 +1,4 @@
-from .checkpoint_safe_globals import allow_mmengine_checkpoints
+from .checkpoint.safe_globals import allow_mmengine_checkpoints
 from .version_check import check_versions
 
 __all__ = ['allow_mmengine_checkpoints', 'check_versions']

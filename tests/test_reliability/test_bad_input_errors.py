@@ -144,7 +144,7 @@ def test_checkpoint_that_does_not_fit_reports_what_did_not_load(
     state.pop('roi_head.mask_head.conv_logits.weight')  # missing
     state['backbone.extra_layer.weight'] = torch.zeros(3)  # unexpected
     # (a mismatch in the backbone, neck or RPN head is refused outright:
-    # tests/test_utils/test_checkpoint_fit.py)
+    # tests/test_utils/test_checkpoint/test_checkpoint_fit.py)
     bias = 'roi_head.bbox_head.0.fc_cls.bias'
     model_shape = tuple(state[bias].shape)
     state[bias] = torch.zeros(1, 2, 3, 3)

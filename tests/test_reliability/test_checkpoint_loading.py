@@ -106,7 +106,7 @@ def test_load_from_truncated_names_file(trained, train, tmp_path):
 
 
 def test_read_checkpoint_keeps_refusing_code(tmp_path):
-    from cbnet_mmdet.utils.checkpoint_tools import (intact_checkpoints,
+    from cbnet_mmdet.utils.checkpoint.files import (intact_checkpoints,
                                                     read_checkpoint)
 
     class Payload:

@@ -29,7 +29,7 @@ import os
 import os.path as osp
 
 from cbnet_lab.proposal_quality import evaluate, to_markdown
-from cbnet_mmdet.utils.checkpoint_tools import last_checkpoint_in
+from cbnet_mmdet.utils.checkpoint.files import last_checkpoint_in
 
 
 def parse_args(argv=None):

@@ -17,7 +17,7 @@ SHA-256 prefix to the name as ``publish_model.py`` does.
 import argparse
 
 import cbnet_mmdet  # noqa: F401  (weights-only allow-list, registries)
-from cbnet_mmdet.utils.checkpoint_tools import extract_detector
+from cbnet_mmdet.utils.checkpoint.files import extract_detector
 
 
 def parse_args(argv=None):

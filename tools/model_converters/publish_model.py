@@ -2,7 +2,7 @@
 
 Derived from MMDetection's ``tools/model_converters/publish_model.py``
 (Copyright (c) OpenMMLab, Apache-2.0); see
-:func:`cbnet_mmdet.utils.checkpoint_tools.publish_checkpoint` for what
+:func:`cbnet_mmdet.utils.checkpoint.files.publish_checkpoint` for what
 differs.
 
 Usage::
@@ -14,7 +14,7 @@ Usage::
 import argparse
 
 import cbnet_mmdet  # noqa: F401  (weights-only allow-list, registries)
-from cbnet_mmdet.utils.checkpoint_tools import (PUBLISH_KEYS,
+from cbnet_mmdet.utils.checkpoint.files import (PUBLISH_KEYS,
                                                 publish_checkpoint)
 
 

@@ -6,7 +6,7 @@ from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint_fit import (check_checkpoint_fits,
+from cbnet_mmdet.utils.checkpoint.fit import (check_checkpoint_fits,
                                               compare_state_dicts, listed,
                                               misfit_message)
 
@@ -21,7 +21,7 @@ class CBNetCheckpointReportHook(Hook):
     hook logs, before the weights are copied, a one-line summary (``N of M
     model tensors loaded``) and, as a warning, the missing, unexpected and
     shape-mismatched tensors (the first
-    :data:`cbnet_mmdet.utils.checkpoint_fit.MAX_LISTED` of each, with
+    :data:`cbnet_mmdet.utils.checkpoint.fit.MAX_LISTED` of each, with
     counts). A checkpoint of which no tensor fits (the wrong file, another
     architecture) raises ``ValueError`` naming it, instead of training from
     scratch without notice.
@@ -29,7 +29,7 @@ class CBNetCheckpointReportHook(Hook):
     With ``require_fit=True`` (``tools/test.py`` and the other tools that
     evaluate a checkpoint) every model tensor must be in the checkpoint
     with its shape: a partial fit raises
-    :class:`~cbnet_mmdet.utils.checkpoint_fit.CheckpointMismatchError`
+    :class:`~cbnet_mmdet.utils.checkpoint.fit.CheckpointMismatchError`
     saying what does not fit and what to do (extract the student of a
     CBNet-DD checkpoint, use the checkpoint's own config).
 

@@ -11,7 +11,7 @@ from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint_tools import intact_checkpoints
+from cbnet_mmdet.utils.checkpoint.files import intact_checkpoints
 
 #: Image paths of the offending batch listed in the error message.
 MAX_LISTED = 8

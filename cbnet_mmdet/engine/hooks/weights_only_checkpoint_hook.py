@@ -88,7 +88,7 @@ class CBNetWeightsOnlyCheckpointHook(Hook):
     torch >= 2.6 loads with ``weights_only=True``; MMEngine writes its
     message hub (``HistoryBuffer`` objects on NumPy arrays) into every
     training checkpoint, which such loading refuses unless
-    :mod:`cbnet_mmdet.utils.checkpoint_safe_globals` has allow-listed them,
+    :mod:`cbnet_mmdet.utils.checkpoint.safe_globals` has allow-listed them,
     i.e. unless the process imported ``cbnet_mmdet`` first. MMDetection's
     ``DetInferencer(weights=CKPT)`` and ``demo/image_demo.py IMG CKPT``
     read the checkpoint before they know its config (and so before its

@@ -2,7 +2,7 @@
 from mmdet.registry import RUNNERS
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint_tools import (read_checkpoint,
+from cbnet_mmdet.utils.checkpoint.files import (read_checkpoint,
                                                 resume_checkpoint)
 
 

@@ -16,7 +16,7 @@ from mmengine.runner.checkpoint import CheckpointLoader, load_state_dict
 from torch import Tensor
 from torch.nn.modules.batchnorm import _BatchNorm
 
-from ...utils.checkpoint_fit import StrictCheckpointFitMixin
+from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 from ..layers import CBNetMish  # noqa: F401  (registers 'CBNetMish')
 from .mit_checkpoint import convert_mit_checkpoint
 from .mit_layers import MiTEncoderLayer

@@ -25,7 +25,7 @@ from typing import Dict, List, Tuple
 from mmdet.models.backbones.pvt import pvt_convert
 from torch import Tensor
 
-from ...utils.checkpoint_tools import unwrap_state_dict
+from ...utils.checkpoint.files import unwrap_state_dict
 
 #: Prefixes of official-layout keys that have no counterpart in a backbone.
 OFFICIAL_NON_BACKBONE = ('head.', 'norm.', 'cls_token')

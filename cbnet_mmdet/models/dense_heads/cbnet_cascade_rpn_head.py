@@ -7,7 +7,7 @@ from mmdet.registry import MODELS
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.config import ConfigDict
 
-from ...utils.checkpoint_fit import StrictCheckpointFitMixin
+from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 
 # Stage 1 (anchor refinement) assigns by the anchor-centre region of each
 # ground truth, without sampling; stage 2 (proposal refinement) by IoU with

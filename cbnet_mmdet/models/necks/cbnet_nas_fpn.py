@@ -9,7 +9,7 @@ from mmdet.registry import MODELS
 from mmdet.utils import MultiConfig, OptConfigType
 from torch import Tensor
 
-from ...utils.checkpoint_fit import StrictCheckpointFitMixin
+from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 from ..utils import use_channels_last
 
 # The searched NAS-FPN cell graph (Ghiasi et al. 2019, as in MMDet's

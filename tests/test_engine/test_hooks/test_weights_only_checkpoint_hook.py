@@ -33,11 +33,11 @@ DEMO = osp.join(ROOT, 'configs', 'demo',
 
 
 def _toy_module():
-    """tests/test_utils/test_checkpoint_safe_globals.py (its toy model and
-    data), loaded by path: the tests are not a package."""
+    """tests/test_utils/test_checkpoint/test_checkpoint_safe_globals.py (its
+    toy model and data), loaded by path: the tests are not a package."""
     spec = importlib.util.spec_from_file_location(
         'cbnet_weights_only_toys',
-        osp.join(ROOT, 'tests', 'test_utils',
+        osp.join(ROOT, 'tests', 'test_utils', 'test_checkpoint',
                  'test_checkpoint_safe_globals.py'))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

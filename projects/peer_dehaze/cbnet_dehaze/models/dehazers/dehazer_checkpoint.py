@@ -4,8 +4,8 @@ from typing import Dict, List, Optional
 from mmengine.logging import MMLogger
 from torch import nn
 
-from cbnet_mmdet.utils.checkpoint_fit import compare_state_dicts, listed
-from cbnet_mmdet.utils.checkpoint_tools import (read_checkpoint,
+from cbnet_mmdet.utils.checkpoint.fit import compare_state_dicts, listed
+from cbnet_mmdet.utils.checkpoint.files import (read_checkpoint,
                                                 unwrap_state_dict)
 
 #: Where a dehazer's weights sit inside the checkpoints this package
@@ -47,7 +47,7 @@ def load_dehazer_checkpoint(dehazer: nn.Module,
     The file may be an MMEngine checkpoint of the dehazer training model
     (``projects/peer_dehaze/tools/train_dehazer.py``), of a detector with a
     dehazing data preprocessor, or a bare state dict. It is read by
-    :func:`~cbnet_mmdet.utils.checkpoint_tools.read_checkpoint`
+    :func:`~cbnet_mmdet.utils.checkpoint.files.read_checkpoint`
     (``torch.load(weights_only=True)`` with the package's allow-list,
     errors naming the file). Tensors whose name and shape fit are copied.
 

@@ -11,7 +11,7 @@ from torch import nn
 from torch.utils.data import Dataset
 
 import cbnet_mmdet  # noqa: F401  (registers the allow-list)
-from cbnet_mmdet.utils.checkpoint_safe_globals import (allowed_global_names,
+from cbnet_mmdet.utils.checkpoint.safe_globals import (allowed_global_names,
                                                        history_buffer_getattr)
 
 

@@ -11,7 +11,7 @@ checkpoint when the latest is damaged).
 only ``meta`` and ``state_dict``, save, and put the first 8 hex digits of
 the file's SHA-256 into its name. Unlike that script it loads with
 ``weights_only`` (the project's allow-list, see
-:mod:`cbnet_mmdet.utils.checkpoint_safe_globals`), hashes in Python and
+:mod:`cbnet_mmdet.utils.checkpoint.safe_globals`), hashes in Python and
 renames synchronously, so the returned path exists when it returns.
 
 :func:`extract_detector` turns a CBNet-DD (``CBNetDistiller``) checkpoint
@@ -32,7 +32,7 @@ import torch
 from mmengine.config import Config
 from mmengine.runner import CheckpointLoader
 
-from .checkpoint_file import check_checkpoint_file, refused
+from .file_check import check_checkpoint_file, refused
 
 #: What a published checkpoint keeps (MMDetection's default).
 PUBLISH_KEYS = ('meta', 'state_dict')
@@ -44,7 +44,7 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
     """Read a local checkpoint file, naming the file and the problem.
 
     Loads with ``torch.load(weights_only=True)`` and the project's
-    allow-list (:mod:`cbnet_mmdet.utils.checkpoint_safe_globals`); never
+    allow-list (:mod:`cbnet_mmdet.utils.checkpoint.safe_globals`); never
     with ``weights_only=False``. Meant for every place that reads a
     checkpoint the user names (``--resume``, ``load_from``, the work dir's
     latest, inference tools): instead of torch's ``PytorchStreamReader``

@@ -15,11 +15,12 @@ from mmengine.logging.history_buffer import HistoryBuffer
 from mmengine.registry import init_default_scope
 
 import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.utils.checkpoint_tools import (detector_config,
+from cbnet_mmdet.utils.checkpoint.files import (detector_config,
                                                 extract_detector,
                                                 publish_checkpoint)
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+ROOT = osp.dirname(
+    osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__)))))
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 

@@ -39,7 +39,7 @@ def check_checkpoint_file(filename: str) -> None:
     its directory at the end), so this is cheap on a large checkpoint. The
     one check behind every checkpoint the project reads: MMEngine's local
     loader (:func:`load_local_checkpoint`) and the training-time reader
-    :func:`cbnet_mmdet.utils.checkpoint_tools.read_checkpoint`.
+    :func:`cbnet_mmdet.utils.checkpoint.files.read_checkpoint`.
 
     Args:
         filename (str): Local path.
@@ -82,7 +82,7 @@ def load_local_checkpoint(filename: str, map_location=None):
 
     Loads with ``torch.load``'s default (``weights_only=True`` in torch
     >= 2.6, with the allow-list of
-    :mod:`cbnet_mmdet.utils.checkpoint_safe_globals`). A file that holds
+    :mod:`cbnet_mmdet.utils.checkpoint.safe_globals`). A file that holds
     other Python objects is refused with an error that names the object,
     without torch's advice to load it with ``weights_only=False``.
 
@@ -121,7 +121,7 @@ def refused(filename: str,
         f'checkpoint {filename} holds {what}, which torch.load\'s '
         f'weights-only loading refuses: it reads tensors, Python '
         f'values and the MMEngine log objects cbnet_mmdet allows '
-        f'(cbnet_mmdet/utils/checkpoint_safe_globals.py), nothing '
+        f'(cbnet_mmdet/utils/checkpoint/safe_globals.py), nothing '
         f'that could run code. A checkpoint written by tools/train.py '
         f'holds nothing else; for a file from elsewhere, ask for one '
         f'saved as torch.save(dict(state_dict=model.state_dict()))')

@@ -16,12 +16,13 @@ from mmengine.registry import init_default_scope
 from tool_helpers import load_tool
 
 import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.utils.checkpoint_fit import (CheckpointMismatchError,
+from cbnet_mmdet.utils.checkpoint.fit import (CheckpointMismatchError,
                                               check_checkpoint_fits,
                                               compare_state_dicts,
                                               require_checkpoint_fit)
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+ROOT = osp.dirname(
+    osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__)))))
 DEMO = osp.join(ROOT, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 
