@@ -1,4 +1,5 @@
-"""Offload rate vs AP (cbnet_mmdet.serving.offload, tools/serve/offload_eval.py).
+"""Offload rate vs AP (cbnet_mmdet.serving.offload,
+tools/serve/offload_eval.py).
 
 Two fake route.py runs over a stream of clear and foggy frames of two
 annotated images: the server predicts the ground truth everywhere, the
@@ -34,8 +35,9 @@ def annotations():
     anns = []
     for n, (img, cat, (x, y, w, h)) in enumerate(OBJECTS, 1):
         poly = [x, y, x + w, y, x + w, y + h, x, y + h]
-        anns.append(dict(id=n, image_id=img, category_id=cat, bbox=[x, y, w, h],
-                         area=w * h, iscrowd=0, segmentation=[poly]))
+        anns.append(dict(id=n, image_id=img, category_id=cat,
+                         bbox=[x, y, w, h], area=w * h, iscrowd=0,
+                         segmentation=[poly]))
     cats = [dict(id=i, name=c) for i, c in zip(
         (24, 25, 26, 27, 28, 31, 32, 33), CLASSES)]
     return dict(images=images, annotations=anns, categories=cats)
@@ -175,8 +177,8 @@ def test_offload_curve_haze_rule_recovers_foggy_frames(runs):
     assert shipped[0]['segm_mAP'] == pytest.approx(100)
     # random offloading of 2 of 4 frames: a control, mean of two seeds
     rand = [r for r in res['rows'] if r['policy'].startswith('random 2/4')]
-    assert len(rand) == 1 and set(rand[0]['std']) == {'bbox_mAP',
-                                                       'segm_mAP'}
+    assert len(rand) == 1
+    assert set(rand[0]['std']) == {'bbox_mAP', 'segm_mAP'}
     assert ref_local <= rand[0]['segm_mAP'] <= 100
     assert res['by_condition']['0.02']['local']['segm_mAP'] == 0
     assert res['by_condition']['0.02']['server']['segm_mAP'] == \
