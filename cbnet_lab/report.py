@@ -26,11 +26,12 @@ def machine_info(device: str = 'cpu') -> dict:
         device (str): The torch device measured (``'cpu'``, ``'cuda:0'``).
 
     Returns:
-        dict: ``platform``, ``processor``, ``cpu_count``, ``threads``
-        (torch intra-op), ``omp_num_threads``, ``python``, ``torch``,
-        ``mmcv``, ``mmdet``, ``cbnet_mmdet`` (the folder of the copy that
-        ran: installed, or a checkout on ``PYTHONPATH``), ``loadavg`` and
-        ``device`` (the GPU's name, or a CPU description).
+        dict: ``platform``, ``system`` (``Linux``...), ``processor``,
+        ``cpu_count``, ``threads`` (torch intra-op), ``omp_num_threads``,
+        ``python``, ``torch``, ``mmcv``, ``mmdet``, ``cbnet_mmdet`` (the
+        folder of the copy that ran: installed, or a checkout on
+        ``PYTHONPATH``), ``loadavg`` and ``device`` (the GPU's name, or a
+        CPU description).
     """
     import mmcv
     import mmdet
@@ -39,6 +40,7 @@ def machine_info(device: str = 'cpu') -> dict:
     import cbnet_mmdet
     info = dict(
         platform=platform.platform(),
+        system=platform.system(),
         processor=platform.processor() or platform.machine(),
         cpu_count=os.cpu_count(),
         threads=torch.get_num_threads(),
@@ -65,7 +67,7 @@ def machine_line(info: Optional[dict] = None) -> str:
             this machine (CPU).
     """
     info = machine_info() if info is None else info
-    line = (f'{info["device"]}, {platform.system()}, torch {info["torch"]}, '
+    line = (f'{info["device"]}, {info["system"]}, torch {info["torch"]}, '
             f'mmdet {info["mmdet"]}')
     if info.get('loadavg'):
         line += ', load ' + ' / '.join(f'{v:.2f}' for v in info['loadavg'])

@@ -52,6 +52,8 @@ def test_machine_info_and_line_describe_this_run(monkeypatch):
     assert line.startswith(info['device'])
     assert f'torch {torch.__version__}' in line and platform.system() in line
     assert line.endswith('load 1.23 / 0.50 / 0.25')
+    # the line describes the record it is given, not this machine
+    assert 'OtherOS' in machine_line(dict(info, system='OtherOS'))
 
     def no_loadavg():
         raise OSError('no load average here')

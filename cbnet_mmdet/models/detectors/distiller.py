@@ -11,7 +11,7 @@ from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from torch import Tensor
 
 from ..data_preprocessors.paired_data_preprocessor import IMG_CHANNELS
-from ..roi_heads.roi_head_losses import (mask_record_losses_of,
+from ..roi_heads.roi_head_losses import (require_mask_record_losses,
                                          roi_losses_with_mask_record)
 
 EVAL_MODELS = ('student', 'teacher')
@@ -101,13 +101,8 @@ class CBNetDistiller(SemiBaseDetector):
                 f'CBNetDistiller: the student ({type(self.student).__name__}'
                 f') has no mask head; distillation needs `roi_head` with a '
                 f'`mask_head`')
-        if mask_record_losses_of(self.student.roi_head) is None:
-            raise TypeError(
-                f'CBNetDistiller: the student\'s RoI head '
-                f'({type(self.student.roi_head).__name__}) is not a '
-                f'StandardRoIHead / CascadeRoIHead with their loss and has '
-                f'no loss_with_mask_record, so the RoIs and logits of its '
-                f'mask head cannot be read for distillation')
+        # the student's RoI head must give its mask call's RoIs and logits
+        require_mask_record_losses(self.student.roi_head)
         self.distill_loss = MODELS.build(distill_loss)
         self.eval_with = eval_with
 

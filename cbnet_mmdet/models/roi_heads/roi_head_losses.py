@@ -169,13 +169,20 @@ def roi_losses_with_mask_record(head, x: Tuple[Tensor],
         TypeError: For another kind of RoI head, or one that overrides
             ``loss`` (its losses would not be reproduced).
     """
+    losses_of = require_mask_record_losses(head)
+    return losses_of(x, rpn_results_list, batch_data_samples)
+
+
+def require_mask_record_losses(head) -> Callable:
+    """:func:`mask_record_losses_of`, or a ``TypeError`` naming the head
+    when it cannot be reproduced (for a check at build time too)."""
     losses_of = mask_record_losses_of(head)
     if losses_of is None:
         raise TypeError(
             f'{type(head).__name__} is not a StandardRoIHead or '
             f'CascadeRoIHead with their loss, and has no '
             f'loss_with_mask_record: its mask logits and RoIs cannot be read')
-    return losses_of(x, rpn_results_list, batch_data_samples)
+    return losses_of
 
 
 def mask_record_losses_of(head) -> Optional[Callable]:
