@@ -37,6 +37,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from mmengine.config import Config
+from mmengine.device import get_device
 
 from .ap_drop import ap_drop, test_condition
 from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
@@ -765,7 +766,9 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     record = dict(
         set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],
         seeds=list(seeds), budget=asdict(budget), data_root=data_root,
-        betas=list(betas), machine=machine_line(),
+        betas=list(betas),
+        # the device MMEngine's Runner trained on (a GPU when one is seen)
+        machine=machine_line(device=get_device()),
         date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
         runs=results, summary=summary)
     with open(osp.join(out_dir, 'compare.json'), 'w') as f:

@@ -30,8 +30,8 @@ def machine_info(device: str = 'cpu') -> dict:
         ``cpu_count``, ``threads`` (torch intra-op), ``omp_num_threads``,
         ``python``, ``torch``, ``mmcv``, ``mmdet``, ``cbnet_mmdet`` (the
         folder of the copy that ran: installed, or a checkout on
-        ``PYTHONPATH``), ``loadavg`` and ``device`` (the GPU's name, or a
-        CPU description).
+        ``PYTHONPATH``), ``loadavg`` and ``device`` (a CPU description;
+        on a GPU, its name first, then the CPU, which feeds it).
     """
     import mmcv
     import mmdet
@@ -51,22 +51,23 @@ def machine_info(device: str = 'cpu') -> dict:
         mmdet=mmdet.__version__,
         cbnet_mmdet=osp.dirname(cbnet_mmdet.__file__),
         loadavg=load_average())
+    info['device'] = (f'CPU {info["processor"]}, {info["cpu_count"]} '
+                      f'cores, {info["threads"]} torch threads')
     if str(device).startswith('cuda'):
-        info['device'] = torch.cuda.get_device_name(device)
-    else:
-        info['device'] = (f'CPU {info["processor"]}, {info["cpu_count"]} '
-                          f'cores, {info["threads"]} torch threads')
+        info['device'] = (f'{torch.cuda.get_device_name(device)} + '
+                          f'{info["device"]}')
     return info
 
 
-def machine_line(info: Optional[dict] = None) -> str:
+def machine_line(info: Optional[dict] = None, device: str = 'cpu') -> str:
     """:func:`machine_info` as one line (records, table captions).
 
     Args:
         info (dict, optional): A :func:`machine_info` result; None measures
-            this machine (CPU).
+            this machine.
+        device (str): The torch device measured, when ``info`` is None.
     """
-    info = machine_info() if info is None else info
+    info = machine_info(device) if info is None else info
     line = (f'{info["device"]}, {info["system"]}, torch {info["torch"]}, '
             f'mmdet {info["mmdet"]}')
     if info.get('loadavg'):

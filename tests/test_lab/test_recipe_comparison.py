@@ -236,6 +236,20 @@ def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
     assert not a.acquire()
 
 
+def fake_training(tmp_path, monkeypatch, run_recipe):
+    """compare() with ``run_recipe`` in place of training, no weights
+    sources, clear val as reference, no plot, and a val file under
+    ``tmp_path / 'data'``."""
+    monkeypatch.setattr(rc, 'run_recipe', run_recipe)
+    monkeypatch.setattr(rc, 'weights_sources',
+                        lambda recipes: {n: None for n, _ in recipes})
+    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
+    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    ann = tmp_path / 'data' / 'annotations'
+    ann.mkdir(parents=True)
+    (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
+
+
 def test_compare_waits_for_runs_held_by_another_process(tmp_path,
                                                         monkeypatch):
     """A run locked by a live process is skipped, then read back once its
@@ -247,14 +261,7 @@ def test_compare_waits_for_runs_held_by_another_process(tmp_path,
         trained.append((name, seed))
         return fake_run(name, seed, 0.5, 0.4)
 
-    monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
-    monkeypatch.setattr(rc, 'weights_sources',
-                        lambda recipes: {n: None for n, _ in recipes})
-    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
-    ann = tmp_path / 'data' / 'annotations'
-    ann.mkdir(parents=True)
-    (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
+    fake_training(tmp_path, monkeypatch, fake_run_recipe)
     other = rc.RunLock(osp.dirname(rc.result_file(out, 'x', 1)))
     assert other.acquire()  # "another process" trains x, seed 1
     calls = []
@@ -276,6 +283,29 @@ def test_compare_waits_for_runs_held_by_another_process(tmp_path,
     assert any('being trained by process' in line for line in logs)
     assert [r['seed'] for r in record['runs']] == [0, 1]
     assert record['runs'][1]['metrics']['clear']['coco/segm_mAP'] == 0.7
+
+
+def test_the_record_names_the_gpu_the_runs_trained_on(tmp_path,
+                                                      monkeypatch):
+    """MMEngine's Runner trains on a GPU when it sees one: the record must
+    say so (it said 'CPU ...' for runs trained on an H100)."""
+    import torch
+    fake_training(tmp_path, monkeypatch,
+                  lambda name, config, seed, *a, **k: fake_run(
+                      name, seed, 0.5, 0.4))
+
+    def compare(out):
+        return rc.compare([('x', 'x.py')], [0], ce.Budget(iters=1),
+                          str(tmp_path / 'data'), [0.02], str(out),
+                          log=lambda *a: None)
+
+    monkeypatch.setattr(rc, 'get_device', lambda: 'cpu')
+    assert compare(tmp_path / 'cpu')['machine'].startswith('CPU ')
+    monkeypatch.setattr(rc, 'get_device', lambda: 'cuda')
+    monkeypatch.setattr(torch.cuda, 'get_device_name',
+                        lambda device=None: 'NVIDIA FakeGPU')
+    line = compare(tmp_path / 'gpu')['machine']
+    assert line.startswith('NVIDIA FakeGPU + CPU ')
 
 
 def test_only_keeps_the_named_recipes_in_set_order():

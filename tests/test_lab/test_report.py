@@ -52,6 +52,12 @@ def test_machine_info_and_line_describe_this_run(monkeypatch):
     assert line.startswith(info['device'])
     assert f'torch {torch.__version__}' in line and platform.system() in line
     assert line.endswith('load 1.23 / 0.50 / 0.25')
+    # on a GPU: its name, then the CPU that feeds it
+    monkeypatch.setattr(torch.cuda, 'get_device_name',
+                        lambda device=None: 'NVIDIA FakeGPU')
+    gpu = machine_info('cuda:0')['device']
+    assert gpu == 'NVIDIA FakeGPU + ' + info['device']
+    assert machine_line(device='cuda').startswith('NVIDIA FakeGPU + CPU ')
     # the line describes the record it is given, not this machine
     assert 'OtherOS' in machine_line(dict(info, system='OtherOS'))
 
