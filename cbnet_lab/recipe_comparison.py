@@ -659,11 +659,38 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
                 recipes=list(recipes), summary=summary)
 
 
+def check_data(reference: str, data_root: str,
+               betas: Sequence[float]) -> None:
+    """Clear errors before any training: real data (``reference`` other
+    than ``'clear'``) must exist and takes no betas; generated or
+    Cityscapes data must have its converted val annotations."""
+    if reference != 'clear':
+        if not osp.isdir(data_root):
+            raise FileNotFoundError(
+                f'--data-root {data_root} not found: the recipes test real '
+                f'data ({reference!r}); give its folder')
+        if betas:
+            raise ValueError(
+                f'the recipes test real data ({reference!r}): no foggy '
+                f'betas apply, got {list(betas)}')
+        return
+    ann = osp.join(data_root, 'annotations',
+                   'instancesonly_filtered_gtFine_val.json')
+    if not osp.isfile(ann):
+        raise FileNotFoundError(
+            f'{ann} not found: --data-root must be a dataset in the '
+            'Cityscapes layout with converted annotations (generate one '
+            'with `python tools/misc/generate_cityscapes_like.py DIR '
+            '--convert`, or convert the real one with '
+            '`python tools/dataset_converters/cityscapes.py DIR`)')
+
+
 def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget: Budget, data_root: str, betas: Sequence[float],
             out_dir: str, cfg_options: Optional[dict] = None,
             log: Callable[[str], None] = print,
-            set_name: Optional[str] = None, wait_s: float = 30.0) -> dict:
+            set_name: Optional[str] = None, wait_s: float = 30.0,
+            train: bool = True) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -684,6 +711,12 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         set_name (str, optional): Name of the built-in set, for the record.
         wait_s (float): Poll interval while the only runs left are being
             trained by other processes of the same comparison.
+        train (bool): False tabulates the finished runs in ``out_dir``
+            alone (e.g. a record put there with :func:`restore_runs`):
+            nothing is trained or tested, no data is read, the runs left
+            out are listed (``missing`` in the record, a line under the
+            tables) and the record names no machine (``machine`` None:
+            the runs say nothing of where they were trained).
 
     Several processes may run the same comparison (same ``out_dir``) at
     once, e.g. one per core with one thread each: each run is locked by
@@ -694,24 +727,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         dict: What ``compare.json`` holds.
     """
     reference = reference_condition(recipes)
-    ann = osp.join(data_root, 'annotations',
-                   'instancesonly_filtered_gtFine_val.json')
-    if reference != 'clear':
-        if not osp.isdir(data_root):
-            raise FileNotFoundError(
-                f'--data-root {data_root} not found: the recipes test real '
-                f'data ({reference!r}); give its folder')
-        if betas:
-            raise ValueError(
-                f'the recipes test real data ({reference!r}): no foggy '
-                f'betas apply, got {list(betas)}')
-    elif not osp.isfile(ann):
-        raise FileNotFoundError(
-            f'{ann} not found: --data-root must be a dataset in the '
-            'Cityscapes layout with converted annotations (generate one '
-            'with `python tools/misc/generate_cityscapes_like.py DIR '
-            '--convert`, or convert the real one with '
-            '`python tools/dataset_converters/cityscapes.py DIR`)')
+    if train:  # a tabulation reads no data
+        check_data(reference, data_root, betas)
     os.makedirs(out_dir, exist_ok=True)
     sources = weights_sources(recipes)
     # seed-major: a comparison cut short still has every recipe at the
@@ -723,6 +740,22 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     results: Dict[int, dict] = {}
     spent, fresh = 0.0, 0
     pending = list(enumerate(jobs, 1))
+    missing = []
+    if not train:
+        pending = []
+        for k, (name, _, seed) in enumerate(jobs, 1):
+            path = result_file(out_dir, name, seed)
+            if osp.isfile(path):
+                results[k] = read_result(path, budget)
+            else:
+                missing.append([name, seed])
+                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: not '
+                    'finished, left out (nothing is trained)')
+        if not results:
+            raise ValueError(
+                f'nothing to tabulate: no finished run of these recipes '
+                f'and seeds in {out_dir} (with this budget); train them, '
+                'or put a record there with --restore')
     while pending:
         waiting = []
         for k, (name, config, seed) in pending:
@@ -768,12 +801,17 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         seeds=list(seeds), budget=asdict(budget), data_root=data_root,
         betas=list(betas),
         # the device MMEngine's Runner trained on (a GPU when one is seen)
-        machine=machine_line(device=get_device()),
+        machine=machine_line(device=get_device()) if train else None,
         date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
         runs=results, summary=summary)
+    if not train:
+        record['missing'] = missing
     with open(osp.join(out_dir, 'compare.json'), 'w') as f:
         json.dump(record, f, indent=1)
     markdown = to_markdown(summary)
+    if missing:
+        markdown += '\n\nLeft out (not finished): ' + ', '.join(
+            f'{name} seed {seed}' for name, seed in missing) + '.'
     with open(osp.join(out_dir, 'compare.md'), 'w') as f:
         f.write(markdown + '\n')
     plot(summary, betas, osp.join(out_dir, 'compare.png'))

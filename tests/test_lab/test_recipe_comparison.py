@@ -211,6 +211,45 @@ def test_restore_runs_of_a_saved_record(tmp_path):
                         ce.Budget(iters=4))
 
 
+def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
+        tmp_path, monkeypatch):
+    """--report-only: the finished runs of a restored record are
+    tabulated (against numpy), the rest listed, nothing trained, no data
+    read, no machine claimed; nothing finished is a clear error."""
+    budget = ce.Budget(iters=3)
+    runs = [fake_run('x', 0, 0.2, 0.1), fake_run('x', 1, 0.4, 0.2),
+            fake_run('y', 0, 0.3, 0.3)]
+    record = tmp_path / 'compare.json'
+    record.write_text(json.dumps(dict(
+        budget=json.loads(json.dumps(asdict(budget))), runs=runs)))
+    out = str(tmp_path / 'out')
+    rc.restore_runs(str(record), out, budget)
+
+    def no_training(*args, **kwargs):
+        raise AssertionError('--report-only trained a run')
+
+    monkeypatch.setattr(rc, 'run_recipe', no_training)
+    monkeypatch.setattr(rc, 'weights_sources',
+                        lambda recipes: {n: None for n, _ in recipes})
+    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
+    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    logs = []
+    got = rc.compare([('x', 'x.py'), ('y', 'y.py')], [0, 1], budget,
+                     str(tmp_path / 'no_data_here'), [0.02], out,
+                     log=logs.append, train=False)
+    assert got['missing'] == [['y', 1]] and got['machine'] is None
+    x = got['summary']['summary']['x']['clear']['mask AP']
+    assert x['n'] == 2 and x['mean'] == pytest.approx(30.0)
+    assert x['std'] == pytest.approx(np.std([20., 40.], ddof=1))
+    assert got['summary']['summary']['y']['clear']['mask AP']['n'] == 1
+    assert any('y, seed 1: not finished, left out' in line for line in logs)
+    with open(osp.join(out, 'compare.md')) as f:
+        assert 'Left out (not finished): y seed 1.' in f.read()
+    with pytest.raises(ValueError, match='nothing to tabulate'):
+        rc.compare([('z', 'z.py')], [0], budget, 'none', [0.02], out,
+                   log=logs.append, train=False)
+
+
 def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
     import os
     import platform

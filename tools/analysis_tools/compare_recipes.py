@@ -120,6 +120,10 @@ def parse_args(argv=None):
                         help="a saved comparison's compare.json (e.g. "
                         'docs/accuracy/parts.json): its runs are written '
                         'into --work-dir first and not trained again')
+    parser.add_argument('--report-only', action='store_true',
+                        help='train and test nothing: tabulate the '
+                        'finished runs in --work-dir (with --restore, the '
+                        "record's) and list the ones left out")
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='overrides applied to every config')
     args = parser.parse_args(argv)
@@ -175,7 +179,7 @@ def main(argv=None) -> dict:
         print(f'restored {n} finished run(s) from {args.restore}')
     record = rc.compare(recipes, args.seeds, budget, data_root,
                         betas, work_dir, args.cfg_options,
-                        set_name=args.set)
+                        set_name=args.set, train=not args.report_only)
     print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
           'compare.png')
     return record
