@@ -12,6 +12,7 @@
 """
 import glob
 import inspect
+import os
 import os.path as osp
 import re
 import shlex
@@ -151,35 +152,40 @@ def tool_commands():
     as ``tool_helpers.load_tool`` takes it). Optional parts written ``[...]``
     are included, without their brackets; of alternatives ``a|b`` the
     first; loop variables and :data:`PLACEHOLDERS` get a value."""
+    return [(_rel(doc), tool, argv) for doc in DOCS
+            for block in bash_blocks(doc)
+            for tool, argv in block_commands(block)]
+
+
+def block_commands(block):
+    """(tool path under tools/, argv) of each ``python tools/X.py ...``
+    command of one bash block, as :func:`tool_commands` reads them."""
     out = []
-    for doc in DOCS:
-        for block in bash_blocks(doc):
-            # a loop variable stands for the loop's first value
-            for var, values in re.findall(r'for (\w+) in ([^;\n]+); do',
-                                          block):
-                block = block.replace(f'${var}', values.split()[0])
-            for line in block.replace('\\\n', ' ').splitlines():
-                try:
-                    words = shlex.split(line, comments=True)
-                except ValueError:
-                    continue
-                for i, word in enumerate(words[:-1]):
-                    script = words[i + 1]
-                    if word in ('python', 'python3') and \
-                            re.match(r'(projects/[^/]+/)?tools/', script) \
-                            and script.endswith('.py'):
-                        argv = []
-                        for arg in words[i + 2:]:
-                            if arg in ('&&', '&', '|', ';', '>'):
-                                break
-                            # `a|b`: one of the alternatives
-                            arg = arg.strip('[]').split('|')[0]
-                            arg = PLACEHOLDERS.get(arg, arg)
-                            if arg and arg != '...':
-                                argv.append(arg)
-                        if script.startswith('tools/'):
-                            script = script[len('tools/'):]
-                        out.append((_rel(doc), script, argv))
+    # a loop variable stands for the loop's first value
+    for var, values in re.findall(r'for (\w+) in ([^;\n]+); do', block):
+        block = block.replace(f'${var}', values.split()[0])
+    for line in block.replace('\\\n', ' ').splitlines():
+        try:
+            words = shlex.split(line, comments=True)
+        except ValueError:
+            continue
+        for i, word in enumerate(words[:-1]):
+            script = words[i + 1]
+            if word in ('python', 'python3') and \
+                    re.match(r'(projects/[^/]+/)?tools/', script) \
+                    and script.endswith('.py'):
+                argv = []
+                for arg in words[i + 2:]:
+                    if arg in ('&&', '&', '|', ';', '>'):
+                        break
+                    # `a|b`: one of the alternatives
+                    arg = arg.strip('[]').split('|')[0]
+                    arg = PLACEHOLDERS.get(arg, arg)
+                    if arg and arg != '...':
+                        argv.append(arg)
+                if script.startswith('tools/'):
+                    script = script[len('tools/'):]
+                out.append((script, argv))
     return out
 
 
@@ -211,6 +217,63 @@ def test_documented_command_parses(doc, tool, argv, restore_environ,
         raise AssertionError(
             f'{doc}: `python tools/{tool} {" ".join(argv)}` is refused by '
             f'the tool\'s arguments') from err
+
+
+def tabulated_records():
+    """(doc, argv, table rows) of every documented ``compare_recipes.py
+    --report-only`` command: the ``|`` and ``Left out`` lines after its
+    bash block, up to the next block or heading, are what it prints from
+    the committed record."""
+    out = []
+    for doc in DOCS:
+        text = _read(doc)
+        for m in re.finditer(r'```(?:bash|shell|sh)\n(.*?)```', text,
+                             flags=re.S):
+            after = re.split(r'\n```|\n#', text[m.end():])[0]
+            rows = [line.strip() for line in after.splitlines()
+                    if line.startswith(('|', 'Left out'))]
+            for tool, argv in block_commands(m.group(1)):
+                if tool.endswith('compare_recipes.py') and \
+                        '--report-only' in argv:
+                    out.append((_rel(doc), argv, rows))
+    return out
+
+
+TABULATED = tabulated_records()
+
+
+def test_docs_tabulate_a_record():
+    assert any(doc == 'docs/accuracy.md' for doc, _, _ in TABULATED)
+
+
+@pytest.mark.parametrize('doc,argv,rows', TABULATED,
+                         ids=[f'{d}:{i}' for i, (d, _, _) in
+                              enumerate(TABULATED)])
+def test_documented_tables_are_the_records(doc, argv, rows, tmp_path,
+                                           restore_environ):
+    """The tables under a ``--report-only`` command are what it prints
+    from the committed record now: a record that gains runs fails this
+    until the docs show them."""
+    assert rows, f'{doc}: no table follows `compare_recipes.py {argv}`'
+    module = load_tool('analysis_tools/compare_recipes.py')
+    if '--work-dir' in argv:
+        i = argv.index('--work-dir')
+        argv = argv[:i] + argv[i + 2:]
+    cwd = os.getcwd()
+    os.chdir(ROOT)
+    try:
+        module.main(argv + ['--work-dir', str(tmp_path / 'out')])
+    finally:
+        os.chdir(cwd)
+    printed = (tmp_path / 'out' / 'compare.md').read_text().splitlines()
+    stale = [row for row in rows if row not in printed]
+    # the runs still missing, as many as the record says: none once done
+    stale += [line for line in printed if line.startswith('Left out')
+              and line not in rows]
+    assert not stale, (
+        f'{doc}: these rows are not what `compare_recipes.py '
+        f'{" ".join(argv)}` prints from the record now (rerun it and '
+        f'paste its tables): {stale}')
 
 
 TRAIN_COMMANDS = [(d, argv) for d, t, argv in COMMANDS
