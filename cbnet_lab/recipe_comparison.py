@@ -740,27 +740,17 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     results: Dict[int, dict] = {}
     spent, fresh = 0.0, 0
     pending = list(enumerate(jobs, 1))
-    missing = []
-    if not train:
-        pending = []
-        for k, (name, _, seed) in enumerate(jobs, 1):
-            path = result_file(out_dir, name, seed)
-            if osp.isfile(path):
-                results[k] = read_result(path, budget)
-            else:
-                missing.append([name, seed])
-                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: not '
-                    'finished, left out (nothing is trained)')
-        if not results:
-            raise ValueError(
-                f'nothing to tabulate: no finished run of these recipes '
-                f'and seeds in {out_dir} (with this budget); train them, '
-                'or put a record there with --restore')
+    missing = []  # runs a tabulation (train=False) leaves out
     while pending:
         waiting = []
         for k, (name, config, seed) in pending:
             path = result_file(out_dir, name, seed)
             done = osp.isfile(path)
+            if not done and not train:
+                missing.append([name, seed])
+                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: not '
+                    'finished, left out (nothing is trained)')
+                continue
             lock = None if done else RunLock(osp.dirname(path))
             if lock is not None and not lock.acquire():
                 # another process of this comparison trains it now
@@ -794,6 +784,11 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             # everything left is in other processes' hands: wait for them
             time.sleep(wait_s)
         pending = waiting
+    if not train and not results:
+        raise ValueError(
+            f'nothing to tabulate: no finished run of these recipes and '
+            f'seeds in {out_dir} (with this budget); train them, or put a '
+            'record there with --restore')
     results = [results[k] for k in sorted(results)]
     summary = summarize(results, betas, reference)
     record = dict(

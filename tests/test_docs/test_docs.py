@@ -12,7 +12,6 @@
 """
 import glob
 import inspect
-import os
 import os.path as osp
 import re
 import shlex
@@ -131,10 +130,13 @@ def test_the_citation_scanner_sees_outside_and_missing_files(tmp_path):
     assert _exists(found['tools/train.py'][0])
 
 
+#: A fenced ``bash``/``shell``/``sh`` block; group 1 is its text.
+BASH_BLOCK = re.compile(r'```(?:bash|shell|sh)\n(.*?)```', flags=re.S)
+
+
 def bash_blocks(doc):
     """The fenced ``bash``/``shell``/``sh`` blocks of a markdown file."""
-    return re.findall(r'```(?:bash|shell|sh)\n(.*?)```', _read(doc),
-                      flags=re.S)
+    return BASH_BLOCK.findall(_read(doc))
 
 
 #: Placeholders of documented command lines that a parser checks.
@@ -227,8 +229,7 @@ def tabulated_records():
     out = []
     for doc in DOCS:
         text = _read(doc)
-        for m in re.finditer(r'```(?:bash|shell|sh)\n(.*?)```', text,
-                             flags=re.S):
+        for m in BASH_BLOCK.finditer(text):
             after = re.split(r'\n```|\n#', text[m.end():])[0]
             rows = [line.strip() for line in after.splitlines()
                     if line.startswith(('|', 'Left out'))]
@@ -250,7 +251,7 @@ def test_docs_tabulate_a_record():
                          ids=[f'{d}:{i}' for i, (d, _, _) in
                               enumerate(TABULATED)])
 def test_documented_tables_are_the_records(doc, argv, rows, tmp_path,
-                                           restore_environ):
+                                           restore_environ, monkeypatch):
     """The tables under a ``--report-only`` command are what it prints
     from the committed record now: a record that gains runs fails this
     until the docs show them."""
@@ -259,12 +260,8 @@ def test_documented_tables_are_the_records(doc, argv, rows, tmp_path,
     if '--work-dir' in argv:
         i = argv.index('--work-dir')
         argv = argv[:i] + argv[i + 2:]
-    cwd = os.getcwd()
-    os.chdir(ROOT)
-    try:
-        module.main(argv + ['--work-dir', str(tmp_path / 'out')])
-    finally:
-        os.chdir(cwd)
+    monkeypatch.chdir(ROOT)  # the record's path is the repository's
+    module.main(argv + ['--work-dir', str(tmp_path / 'out')])
     printed = (tmp_path / 'out' / 'compare.md').read_text().splitlines()
     stale = [row for row in rows if row not in printed]
     # the runs still missing, as many as the record says: none once done
