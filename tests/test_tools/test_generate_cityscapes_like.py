@@ -1,4 +1,11 @@
 import json
+import os
+
+import pytest
+# imported before any capsys: mmengine's progress bar binds sys.stdout as
+# a default argument when it is first imported, and a test's capsys stream
+# is closed after that test
+import mmengine.utils.progressbar  # noqa: F401
 
 from tool_helpers import load_tool
 
@@ -44,3 +51,37 @@ def test_preset_fills_what_is_not_given():
     args = tool.parse_args(['out'])
     assert (args.num_train, args.num_val, tuple(args.img_size),
             args.min_height_px) == (40, 10, (256, 512), 8.0)
+
+
+def test_reuse_keeps_the_same_dataset_and_refuses_another(tmp_path, capsys):
+    tool = load_tool('misc/generate_cityscapes_like.py')
+    root = tmp_path / 'cs'
+    small = [str(root), '--num-train', '1', '--num-val', '1', '--size',
+             '64', '128', '--betas', '0.01', '--convert', '--reuse']
+    tool.main(small)
+    assert 'train: 1 images' in capsys.readouterr().out
+    png = root / 'leftImg8bit' / 'val' / 'frankfurt' / \
+        'frankfurt_000000_000019_leftImg8bit.png'
+    stamp = png.stat().st_mtime_ns
+    # the same options: kept, nothing rewritten
+    tool.main(small)
+    assert 'already there' in capsys.readouterr().out
+    assert png.stat().st_mtime_ns == stamp
+    # converted annotations missing: only the conversion runs again
+    ann = root / 'annotations' / 'instancesonly_filtered_gtFine_val.json'
+    ann.unlink()
+    tool.main(small)
+    assert ann.is_file() and png.stat().st_mtime_ns == stamp
+    # another dataset there: an error naming the difference, nothing lost
+    with pytest.raises(SystemExit, match=r'num_train: 1 there, 2 asked'):
+        tool.main([str(root), '--num-train', '2', '--num-val', '1', '--size',
+                   '64', '128', '--betas', '0.01', '--reuse'])
+    assert png.stat().st_mtime_ns == stamp
+    # a folder with something else in it is not written into either
+    other = tmp_path / 'other'
+    other.mkdir()
+    (other / 'keep.txt').write_text('x')
+    with pytest.raises(SystemExit, match='no generator_record.json'):
+        tool.main([str(other), '--num-train', '1', '--num-val', '1',
+                   '--reuse'])
+    assert os.listdir(other) == ['keep.txt']

@@ -9,6 +9,10 @@ Usage::
     # --preset bench); the options above override a preset's values
     python tools/misc/generate_cityscapes_like.py \
         data/cityscapes_like_bench --preset bench --nproc 2 --convert
+    # keep what is there when it is the same dataset (tools/demo.sh);
+    # a different one there is an error, not overwritten
+    python tools/misc/generate_cityscapes_like.py \
+        data/cityscapes_like_bench --preset bench --nproc 2 --convert --reuse
 
 The layout is Cityscapes' (``leftImg8bit``, ``gtFine``,
 ``leftImg8bit_foggy``, plus ``depth`` in centimetres); ``--convert`` also
@@ -16,9 +20,12 @@ writes the COCO JSON under ``OUT_ROOT/annotations`` like
 ``tools/dataset_converters/cityscapes.py`` does for real data.
 """
 import argparse
+import os
+import os.path as osp
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
-from cbnet_mmdet.datasets.synthetic import generate_cityscapes_like
+from cbnet_mmdet.datasets.synthetic import (generate_cityscapes_like,
+                                            load_record, record_differences)
 from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
 
 #: Values without a preset (the generator's own defaults).
@@ -56,6 +63,11 @@ def parse_args(argv=None):
     parser.add_argument(
         '--convert', action='store_true',
         help='also write annotations/instancesonly_filtered_gtFine_*.json')
+    parser.add_argument(
+        '--reuse', action='store_true',
+        help='if OUT_ROOT holds the dataset these options make (its '
+        'generator_record.json), keep it; another dataset there is an '
+        'error (without --reuse, files are overwritten)')
     args = parser.parse_args(argv)
     values = dict(DEFAULTS, **DATA_PRESETS.get(args.preset, {}))
     if args.size is not None:
@@ -66,8 +78,39 @@ def parse_args(argv=None):
     return args
 
 
+def _already_there(args) -> bool:
+    """--reuse: True if OUT_ROOT holds this very dataset (converted too,
+    when --convert asks); SystemExit naming the difference if it holds
+    anything else."""
+    record = load_record(args.out_root)
+    if record is None:
+        if osp.isdir(args.out_root) and os.listdir(args.out_root):
+            raise SystemExit(
+                f'{args.out_root} is not empty and holds no generated '
+                'dataset (no generator_record.json): remove it or give '
+                'another folder')
+        return False
+    diff = record_differences(
+        record, num_train=args.num_train, num_val=args.num_val,
+        img_size=tuple(args.img_size), seed=args.seed, betas=args.betas,
+        density=args.density, min_height_px=args.min_height_px)
+    if diff:
+        raise SystemExit(
+            f'{args.out_root} holds another generated dataset ('
+            + '; '.join(diff) + '): remove it or give another folder')
+    print(f'{args.out_root}: already there (generator_record.json)')
+    return True
+
+
 def main(argv=None):
     args = parse_args(argv)
+    if args.reuse and _already_there(args):
+        ann = osp.join(args.out_root, 'annotations',
+                       'instancesonly_filtered_gtFine_val.json')
+        if args.convert and not osp.isfile(ann):
+            from cbnet_mmdet.datasets.cityscapes_to_coco import convert
+            convert(args.out_root, nproc=args.nproc)
+        return
     records = generate_cityscapes_like(
         args.out_root, num_train=args.num_train, num_val=args.num_val,
         img_size=tuple(args.img_size), seed=args.seed, betas=args.betas,

@@ -318,6 +318,26 @@ def generate_cityscapes_like(out_root: str,
     return out
 
 
+def record_differences(record: dict, num_train: int, num_val: int,
+                       img_size: Tuple[int, int], seed: int,
+                       betas: Sequence[float], density: float,
+                       min_height_px: float) -> List[str]:
+    """What a generator record says that the arguments of
+    :func:`generate_cityscapes_like` would not make (empty: the same
+    dataset), e.g. ``['num_train: 32 there, 200 asked']``."""
+    there = dict(
+        num_train=len(record['splits']['train']),
+        num_val=len(record['splits']['val']),
+        img_size=list(record['img_size']), seed=record['seed'],
+        betas=list(record['betas']), density=record['density'],
+        min_height_px=record['min_height_px'])
+    asked = dict(num_train=num_train, num_val=num_val,
+                 img_size=list(img_size), seed=seed, betas=list(betas),
+                 density=density, min_height_px=min_height_px)
+    return [f'{k}: {there[k]} there, {asked[k]} asked' for k in asked
+            if there[k] != asked[k]]
+
+
 def load_record(out_root: str) -> Optional[dict]:
     """The record written by :func:`generate_cityscapes_like`, or None."""
     path = osp.join(out_root, RECORD_FILE)
