@@ -11,10 +11,11 @@ _base_ = './cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'
 data_root = 'data/cityscapes_like_bench/'
 val_ann_file = data_root + 'annotations/instancesonly_filtered_gtFine_val.json'
 # 8 epochs of the 160 training images that hold objects (the loader drops
-# the empty fifth), batch 4: 320 steps, 6.8 minutes on an idle 2-core CPU.
-# The demo's run (README, 2026-11-26): 29.2 box AP / 18.4 mask AP / 41.3
-# mIoU on clear val, 3.5 mask AP lost at beta 0.02; the full-size
-# benchmark run stopped at 150 steps had scored 5.2 mask AP
+# the empty fifth), batch 4: 320 steps, 7 minutes on a 2-core CPU with
+# nothing else running. The demo's run from a fresh clone (README,
+# 2026-11-26): 29.7 box AP / 18.1 mask AP / 43.0 mIoU on clear val, 4.0
+# mask AP lost at beta 0.02; the full-size benchmark run stopped at 150
+# steps had scored 5.2 mask AP
 max_epochs = 8
 
 train_dataloader = dict(dataset=dict(dataset=dict(data_root=data_root)))
