@@ -1,7 +1,9 @@
-# The demo: a small CBNet (MiT-B0, narrow neck and heads) trained from
-# scratch on the generated Cityscapes-like data (tools/demo.sh makes it,
-# 128x256 images), small enough to train on a 2-core CPU in minutes. Data,
-# schedule and trunk are shared with the demo-size baselines in this folder.
+# The demo-size CBNet: a small CBNet (MiT-B0, narrow neck and heads)
+# trained from scratch on the generated Cityscapes-like data (`--preset
+# demo`, 128x256 images), small enough to train on a 2-core CPU in minutes.
+# Data, schedule and trunk are shared with the demo-size baselines in this
+# folder; tools/demo.sh trains this model on the benchmark preset
+# (cbnet_mit-b0_nasfpn_1xb4-8e_cityscapes-like-bench.py).
 _base_ = [
     '../_base_/models/cbnet_mit-b5_nasfpn_crpn_cascade.py',
     './_base_/cityscapes-like_1xb4-12e.py',

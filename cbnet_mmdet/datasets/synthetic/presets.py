@@ -1,13 +1,14 @@
 """Named sizes of the generated Cityscapes-like dataset.
 
-``demo`` is what ``tools/demo.sh`` trains on and what the comparison
-harness's older tables (docs/accuracy.md) were measured on: 128x256 images,
-most objects COCO-small, where every recipe scores 1-5 AP. ``bench`` is the
-candidate benchmark of issue 23, chosen by measurement (docs/accuracy.md,
-"The benchmark"): 256x512 images (a quarter of Cityscapes' side), objects
-from 48 px tall (nearer than about 20 m) at half the demo's density, 200
-train / 50 val images; the comparison harness's ``--preset bench`` gives
-the budget that goes with it.
+``demo`` is what the comparison harness's older tables (docs/accuracy.md)
+were measured on (and what ``tools/demo.sh`` trained on until
+2026-11-26): 128x256 images, most objects COCO-small, where every recipe
+scores 1-5 AP. ``bench`` is the benchmark of issue 23, chosen by
+measurement (docs/accuracy.md, "The benchmark"): 256x512 images (a
+quarter of Cityscapes' side), objects from 48 px tall (nearer than about
+20 m) at half the demo's density, 200 train / 50 val images; the
+comparison harness's ``--preset bench`` gives the budget that goes with
+it, and ``tools/demo.sh`` trains on it at half its side.
 
 Each preset is the keyword arguments of
 :func:`~cbnet_mmdet.datasets.synthetic.generate_cityscapes_like`.
