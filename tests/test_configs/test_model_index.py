@@ -31,6 +31,18 @@ def test_every_shipped_config_is_indexed_once(models):
         assert m['Name'] == osp.splitext(osp.basename(m['Config']))[0]
 
 
+#: The longest "Dataset/metric" key that `mim search --config X` prints
+#: with its value on an 80-column terminal: with an 85-character key
+#: (2026-11-26) it printed every key of every model without a value.
+MIM_KEY_CHARS = 72
+
+
+def test_results_fit_mims_table(models):
+    keys = [f"{r['Dataset']}/{metric}" for m in models
+            for r in m['Results'] for metric in r['Metrics']]
+    assert max(map(len, keys)) <= MIM_KEY_CHARS, max(keys, key=len)
+
+
 def test_no_weights_url(models):
     """Nothing is published yet: a Weights URL would be a dead link."""
     assert not [m['Name'] for m in models if 'Weights' in m]
