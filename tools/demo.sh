@@ -6,7 +6,7 @@
 #
 # Steps: install the pinned stack (tools/install.sh), generate the
 # benchmark preset's dataset (seeded, so the same every time), train the
-# demo config (the demo CBNet, 400 steps at half the images' side) with
+# demo config (the demo CBNet, 320 steps at half the images' side) with
 # `mim train cbnet_mmdet`, evaluate the checkpoint on clear and foggy val
 # (AP, AP50, mIoU and their drop), draw predictions on clear and foggy
 # images. Outputs go to work_dirs/demo/.

@@ -28,11 +28,10 @@ val_evaluator = [
 test_evaluator = val_evaluator
 
 train_cfg = dict(max_epochs=max_epochs, val_interval=max_epochs)
+# the base's warm-up, and its poly decay ending at this schedule's end
 param_scheduler = [
-    dict(type='LinearLR', start_factor=1e-2, by_epoch=False, begin=0,
-         end=50),
-    dict(type='PolyLR', power=1.0, eta_min=0.0, begin=0, end=max_epochs,
-         by_epoch=True, convert_to_iter_based=True),
+    _base_.param_scheduler[0],
+    dict(_base_.param_scheduler[1], end=max_epochs),
 ]
 default_hooks = dict(checkpoint=dict(interval=max_epochs))
 # one seed, so every run of the demo draws the same picture on one machine

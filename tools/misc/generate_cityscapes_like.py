@@ -79,9 +79,9 @@ def parse_args(argv=None):
 
 
 def _already_there(args) -> bool:
-    """--reuse: True if OUT_ROOT holds this very dataset (converted too,
-    when --convert asks); SystemExit naming the difference if it holds
-    anything else."""
+    """--reuse: True if OUT_ROOT holds this very dataset (its
+    generator_record.json; whether it is converted is not asked here);
+    SystemExit naming the difference if it holds anything else."""
     record = load_record(args.out_root)
     if record is None:
         if osp.isdir(args.out_root) and os.listdir(args.out_root):
@@ -104,22 +104,20 @@ def _already_there(args) -> bool:
 
 def main(argv=None):
     args = parse_args(argv)
-    if args.reuse and _already_there(args):
-        ann = osp.join(args.out_root, 'annotations',
-                       'instancesonly_filtered_gtFine_val.json')
-        if args.convert and not osp.isfile(ann):
-            from cbnet_mmdet.datasets.cityscapes_to_coco import convert
-            convert(args.out_root, nproc=args.nproc)
-        return
-    records = generate_cityscapes_like(
-        args.out_root, num_train=args.num_train, num_val=args.num_val,
-        img_size=tuple(args.img_size), seed=args.seed, betas=args.betas,
-        nproc=args.nproc, density=args.density,
-        min_height_px=args.min_height_px)
-    for split, recs in records.items():
-        n_inst = sum(len(r['instances']) for r in recs)
-        print(f'{split}: {len(recs)} images, {n_inst} instances')
-    if args.convert:
+    reused = args.reuse and _already_there(args)
+    if not reused:
+        records = generate_cityscapes_like(
+            args.out_root, num_train=args.num_train, num_val=args.num_val,
+            img_size=tuple(args.img_size), seed=args.seed,
+            betas=args.betas, nproc=args.nproc, density=args.density,
+            min_height_px=args.min_height_px)
+        for split, recs in records.items():
+            n_inst = sum(len(r['instances']) for r in recs)
+            print(f'{split}: {len(recs)} images, {n_inst} instances')
+    # a kept dataset is converted again only if its annotations are missing
+    converted = osp.isfile(osp.join(args.out_root, 'annotations',
+                                    'instancesonly_filtered_gtFine_val.json'))
+    if args.convert and not (reused and converted):
         from cbnet_mmdet.datasets.cityscapes_to_coco import convert
         convert(args.out_root, nproc=args.nproc)
 
