@@ -27,6 +27,13 @@ STAMP="$VENV/.cbnet_mmdet_stamp"
 
 say() { printf '[install %(%H:%M:%S)T] %s\n' -1 "$*"; }
 
+# Compile jobs for mmcv: MAX_JOBS, else every core this process may use.
+# `nproc` alone honours OMP_NUM_THREADS, which tools/demo.sh (and many a
+# training shell) sets to 1: mmcv then compiled with `ninja -j 1`, half
+# the speed on 2 cores (found 2026-11-27 timing the demo on a fresh machine).
+build_jobs() { echo "${MAX_JOBS:-$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)}"; }
+if [ "${1:-}" = "--print-build-jobs" ]; then build_jobs; exit 0; fi
+
 # Everything that decides what gets installed goes into the stamp.
 stamp_now() {
   cat "$ROOT/tools/install.sh" "$ROOT/requirements/"*.txt "$ROOT/pyproject.toml"
@@ -95,9 +102,9 @@ else
   if command -v nvcc >/dev/null && python -c 'import torch,sys; sys.exit(not torch.version.cuda)'; then
     FORCE_CUDA=1
   fi
-  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA); 11-17 min on 2 cores unless pip has it cached"
+  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA, $(build_jobs) jobs); 11-17 min on 2 cores unless pip has it cached"
   log=$(mktemp)
-  MMCV_WITH_OPS=1 FORCE_CUDA=$FORCE_CUDA MAX_JOBS=${MAX_JOBS:-$(nproc)} \
+  MMCV_WITH_OPS=1 FORCE_CUDA=$FORCE_CUDA MAX_JOBS=$(build_jobs) \
     python -m pip install -v --no-build-isolation "$MMCV_SPEC" >"$log" 2>&1 &
   pid=$!
   start=$SECONDS
