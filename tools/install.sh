@@ -102,9 +102,10 @@ else
   if command -v nvcc >/dev/null && python -c 'import torch,sys; sys.exit(not torch.version.cuda)'; then
     FORCE_CUDA=1
   fi
-  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA, $(build_jobs) jobs); 11-17 min on 2 cores unless pip has it cached"
+  jobs=$(build_jobs)
+  say "compiling $MMCV_SPEC with ops (FORCE_CUDA=$FORCE_CUDA, $jobs jobs); 11-17 min on 2 cores unless pip has it cached"
   log=$(mktemp)
-  MMCV_WITH_OPS=1 FORCE_CUDA=$FORCE_CUDA MAX_JOBS=$(build_jobs) \
+  MMCV_WITH_OPS=1 FORCE_CUDA=$FORCE_CUDA MAX_JOBS=$jobs \
     python -m pip install -v --no-build-isolation "$MMCV_SPEC" >"$log" 2>&1 &
   pid=$!
   start=$SECONDS
