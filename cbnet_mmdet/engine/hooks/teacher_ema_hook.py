@@ -9,7 +9,8 @@ from mmengine.model import is_model_wrapper
 from mmengine.runner import CheckpointLoader, Runner
 from mmengine.runner.checkpoint import load_state_dict
 
-EVAL_MODELS = ('student', 'teacher')
+#: The submodules the hook works on.
+EMA_MODELS = ('student', 'teacher')
 
 
 def teacher_state_dict(checkpoint: dict, filename: str) -> dict:
@@ -62,6 +63,9 @@ class CBNetTeacherEMAHook(MeanTeacherHook):
     ``state_dict``, so the runner restores the EMA from the checkpoint and
     training continues exactly as without interruption.
 
+    Which model validation and testing run is the model's setting
+    (``CBNetDistiller(eval_with=...)``), not this hook's.
+
     Works with ``CBNetDistiller`` (or any model with ``student`` and
     ``teacher`` submodules of the same architecture), wrapped for DDP or
     not; every rank applies the same update to the same weights, so the
@@ -76,8 +80,6 @@ class CBNetTeacherEMAHook(MeanTeacherHook):
             Defaults to None (a copy of the student).
         strict (bool): Raise on key mismatches of ``teacher_checkpoint``
             instead of logging them. Defaults to False.
-        eval_with (str): ``'student'`` or ``'teacher'``: the model that
-            validation and testing use. Defaults to ``'student'``.
         skip_buffers (bool): Leave the teacher's buffers (e.g. BN running
             statistics) untouched instead of averaging them. Defaults to
             False.
@@ -88,7 +90,6 @@ class CBNetTeacherEMAHook(MeanTeacherHook):
                  interval: int = 1,
                  teacher_checkpoint: Optional[str] = None,
                  strict: bool = False,
-                 eval_with: str = 'student',
                  skip_buffers: bool = False) -> None:
         if not 0 < momentum < 1:
             raise ValueError(f'CBNetTeacherEMAHook: momentum must be in '
@@ -96,22 +97,18 @@ class CBNetTeacherEMAHook(MeanTeacherHook):
         if not isinstance(interval, int) or interval < 1:
             raise ValueError(f'CBNetTeacherEMAHook: interval must be a '
                              f'positive int, got {interval!r}')
-        if eval_with not in EVAL_MODELS:
-            raise ValueError(f'CBNetTeacherEMAHook: eval_with must be one '
-                             f'of {EVAL_MODELS}, got {eval_with!r}')
         # MeanTeacherHook's momentum is the weight of the student.
         super().__init__(
             momentum=1 - momentum, interval=interval, skip_buffer=skip_buffers)
         self.teacher_checkpoint = teacher_checkpoint
         self.strict = strict
-        self.eval_with = eval_with
 
     @staticmethod
     def _unwrap(runner: Runner) -> nn.Module:
         model = runner.model
         if is_model_wrapper(model):
             model = model.module
-        for name in EVAL_MODELS:
+        for name in EMA_MODELS:
             if not isinstance(getattr(model, name, None), nn.Module):
                 raise TypeError(
                     f'CBNetTeacherEMAHook: the model '
@@ -137,20 +134,6 @@ class CBNetTeacherEMAHook(MeanTeacherHook):
         runner.logger.info(
             f'CBNetTeacherEMAHook: teacher initialised from '
             f'{self.teacher_checkpoint}')
-
-    def _set_eval_model(self, runner: Runner) -> None:
-        model = runner.model.module if is_model_wrapper(runner.model) \
-            else runner.model
-        if hasattr(model, 'eval_with'):
-            model.eval_with = self.eval_with
-
-    def before_val(self, runner: Runner) -> None:
-        """Validate with ``eval_with``."""
-        self._set_eval_model(runner)
-
-    def before_test(self, runner: Runner) -> None:
-        """Test with ``eval_with``."""
-        self._set_eval_model(runner)
 
     @torch.no_grad()
     def momentum_update(self, model: nn.Module, momentum: float) -> None:

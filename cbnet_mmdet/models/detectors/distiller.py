@@ -6,13 +6,12 @@ import torch
 from mmdet.models.detectors import SemiBaseDetector
 from mmdet.registry import MODELS
 from mmdet.structures import SampleList
-from mmdet.structures.bbox import bbox2roi
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from torch import Tensor
 
 from ..data_preprocessors.paired_data_preprocessor import IMG_CHANNELS
-from ..roi_heads.roi_head_losses import (require_mask_record_losses,
-                                         roi_losses_with_mask_record)
+from .mask_call_recorder import (MaskCallRecorder, last_mask_modules,
+                                 mask_logits_on)
 
 EVAL_MODELS = ('student', 'teacher')
 
@@ -46,12 +45,12 @@ class CBNetDistiller(SemiBaseDetector):
 
     1. the student computes its usual supervised losses on the foggy
        image, its parts called one by one as ``TwoStageDetector.loss``
-       does (features, RPN, then the RoI head through
-       :func:`roi_losses_with_mask_record`, which also returns the RoIs and
-       logits of its last mask-head call: the last stage of a cascade);
+       does (features, RPN, then its RoI head's own ``loss``); forward
+       hooks (:class:`MaskCallRecorder`) read what its last mask head ran
+       on: the positive RoIs of the last stage, their labels, its logits;
     2. the teacher (no gradients, eval mode) extracts features from the
-       clear image and runs its mask head on the SAME RoIs: the student's
-       positive sampled RoIs of that stage;
+       clear image and runs its last stage's mask RoI extractor and mask
+       head on the SAME RoIs;
     3. ``loss_distill`` = ``distill_loss(student logits, teacher logits)``
        on each RoI's ground-truth class channel.
 
@@ -62,15 +61,19 @@ class CBNetDistiller(SemiBaseDetector):
     a plain detector (no ``student.``/``teacher.`` keys) loads into both
     (``SemiBaseDetector._load_from_state_dict``).
 
-    Inference runs the model chosen by ``eval_with`` on channels 0-2 of a
-    paired input, or on a plain 3-channel input.
+    Inference (validation and testing too) runs the model chosen by
+    ``eval_with`` on channels 0-2 of a paired input, or on a plain 3-channel
+    input; ``eval_with`` is set here only (``CBNetTeacherEMAHook`` leaves
+    it alone).
 
     Args:
         detector (:obj:`ConfigDict` or dict): Config of the student; any
             MMDetection two-stage detector whose ``roi_head`` has a mask
-            head: ``StandardRoIHead``, ``CascadeRoIHead`` (or a subclass
-            keeping their ``loss``) or a head with ``loss_with_mask_record``
-            (``CBNetCascadeRoIHead``); another raises ``TypeError``.
+            head fed by a mask RoI extractor (``StandardRoIHead`` with a
+            ``mask_roi_extractor``, ``CascadeRoIHead``,
+            ``CBNetCascadeRoIHead``) and calling its ``loss_mask`` as
+            MMDet's ``FCNMaskHead`` does; another raises ``TypeError``
+            (see :func:`last_mask_modules`).
         distill_loss (:obj:`ConfigDict` or dict): Distillation loss on
             mask logits, ``loss(student Tensor[N, h, w], teacher Tensor[N,
             h, w])``. Defaults to ``CBNetDistillLoss`` with weight 1.
@@ -101,8 +104,8 @@ class CBNetDistiller(SemiBaseDetector):
                 f'CBNetDistiller: the student ({type(self.student).__name__}'
                 f') has no mask head; distillation needs `roi_head` with a '
                 f'`mask_head`')
-        # the student's RoI head must give its mask call's RoIs and logits
-        require_mask_record_losses(self.student.roi_head)
+        # the mask head's RoIs, labels and logits must be readable
+        last_mask_modules(self.student.roi_head)
         self.distill_loss = MODELS.build(distill_loss)
         self.eval_with = eval_with
 
@@ -169,26 +172,23 @@ class CBNetDistiller(SemiBaseDetector):
         x = student.extract_feat(foggy)
         losses, rpn_results_list = self.student_rpn_losses(
             x, batch_data_samples)
-        roi_losses, record = roi_losses_with_mask_record(
-            student.roi_head, x, rpn_results_list, batch_data_samples)
-        losses.update(roi_losses)
-        if record is None:
+        with MaskCallRecorder(student.roi_head) as recorder:
+            losses.update(
+                student.roi_head.loss(x, rpn_results_list,
+                                      batch_data_samples))
+        call = recorder.last_call()
+        if call is None:
             raise RuntimeError(
                 f'CBNetDistiller: {type(student.roi_head).__name__} ran no '
-                f'mask loss (no proposal reached a mask stage), so there '
+                f'mask head (no proposal reached a mask stage), so there '
                 f'are no mask logits to distil')
-        rois = bbox2roi([res.pos_priors for res in record.sampling_results])
-        labels = torch.cat(
-            [res.pos_gt_labels for res in record.sampling_results])
         with torch.no_grad():
-            teacher_feats = self.teacher.extract_feat(clear)
-            mask_forward = self.teacher.roi_head._mask_forward
-            teacher_results = mask_forward(teacher_feats, rois) \
-                if record.stage is None \
-                else mask_forward(record.stage, teacher_feats, rois)
+            teacher_logits = mask_logits_on(
+                self.teacher.roi_head, self.teacher.extract_feat(clear),
+                call.rois)
         losses['loss_distill'] = self.distill_loss(
-            select_label_channel(record.mask_results['mask_preds'], labels),
-            select_label_channel(teacher_results['mask_preds'], labels))
+            select_label_channel(call.mask_preds, call.labels),
+            select_label_channel(teacher_logits, call.labels))
         return losses
 
     def student_rpn_losses(self, x: Tuple[Tensor],

@@ -1,5 +1,5 @@
 """Cascade RoI head whose mask head runs on the last stage only."""
-from typing import List, Optional, Tuple
+from typing import List, Tuple
 
 import torch
 from mmdet.models.roi_heads import CascadeRoIHead
@@ -10,8 +10,6 @@ from mmdet.structures import SampleList
 from mmdet.structures.bbox import bbox2roi
 from mmdet.utils import ConfigType, InstanceList, OptConfigType
 from torch import Tensor
-
-from .roi_head_losses import MaskLossRecord, cascade_roi_losses
 
 
 @MODELS.register_module()
@@ -34,13 +32,21 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
     (and ``.loss_edge``) at the weight its loss config sets; in inference
     it runs once on the final boxes.
 
+    Training runs MMDet's cascade loop (:meth:`CascadeRoIHead.loss`)
+    unchanged; :meth:`mask_loss`, which the loop calls on every stage, is
+    the one override: it runs the mask head on the last stage only.
+
     Mask loss weight: MMDet's cascade multiplies every loss of stage ``i``
     by ``stage_loss_weights[i]``, mask losses included, so a mask head on
     the last stage alone would train at ``stage_loss_weights[-1]`` (0.25 in
     Cascade R-CNN) times its configured weight. The paper adds ``L_bound``
     to the total at weight 1 (eq. 10), so the stage weights scale the box
-    stages only: the logged ``s{num_stages - 1}.loss_mask`` equals the
-    unscaled loss times the mask loss config's ``loss_weight``.
+    stages only: :meth:`mask_loss` returns the mask losses divided by
+    ``stage_loss_weights[-1]`` (which must be positive), and the logged
+    ``s{num_stages - 1}.loss_mask`` equals the unscaled loss times the mask
+    loss config's ``loss_weight``. For a mask head on every stage, scaled
+    by the stage weights, use MMDet's ``CascadeRoIHead`` with a list of
+    mask heads (``configs/demo/parts/*mask-per-stage*``).
 
     Args:
         num_stages (int): Number of box stages (3 in the paper).
@@ -109,55 +115,22 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
             return dict(mask_preds=mask_preds, edge_preds=edge_preds)
         return dict(mask_preds=self.mask_head(mask_feats))
 
-    def loss(self, x: Tuple[Tensor], rpn_results_list: InstanceList,
-             batch_data_samples: SampleList) -> dict:
-        """Box losses of every stage and the last stage's mask losses.
-
-        MMDet's cascade loop (assign and sample each stage's proposals,
-        :meth:`bbox_loss` weighted by ``stage_loss_weights[stage]``, refine
-        the boxes for the next stage), written out with its parts in
-        :func:`cascade_roi_losses`, so that the mask losses of the last
-        stage are added at their configured weight, outside the stage
-        weight (see the class doc), and no mask forward runs before it.
-
-        Args:
-            x (tuple[Tensor]): Multi-level features ``Tensor[B, C, H, W]``.
-            rpn_results_list (list[:obj:`InstanceData`]): Proposals.
-            batch_data_samples (list[:obj:`DetDataSample`]): Annotations.
-
-        Returns:
-            dict[str, Tensor]: ``s{i}.loss_cls``, ``s{i}.loss_bbox``,
-            ``s{i}.acc`` and ``s{num_stages - 1}.loss_mask`` (and
-            ``.loss_edge``).
-        """
-        return self.loss_with_mask_record(x, rpn_results_list,
-                                          batch_data_samples)[0]
-
-    def loss_with_mask_record(self, x: Tuple[Tensor],
-                              rpn_results_list: InstanceList,
-                              batch_data_samples: SampleList
-                              ) -> Tuple[dict, Optional[MaskLossRecord]]:
-        """:meth:`loss` and the last stage's mask call (its samples and
-        logits), which CBNet-DD's teacher runs on.
-
-        Returns:
-            tuple: The losses of :meth:`loss` and a
-            :class:`MaskLossRecord` (None without a mask head).
-        """
-        return cascade_roi_losses(
-            self, x, rpn_results_list, batch_data_samples,
-            mask_stages=(self.num_stages - 1, ), weight_mask_losses=False)
-
     def mask_loss(self, stage: int, x: Tuple[Tensor],
                   sampling_results: List[SamplingResult],
                   batch_gt_instances: InstanceList) -> dict:
-        """Mask forward and losses on a stage's positive RoIs.
+        """Mask forward and losses of a stage, as MMDet's cascade loop
+        (:meth:`CascadeRoIHead.loss`, unchanged) calls it for every stage.
 
-        :meth:`loss` calls it on the last stage only; its ``loss_mask``
-        entries are added there at their configured weight.
+        A stage before the last has no mask head: nothing runs and no loss
+        is returned. On the last stage the mask head runs on the positive
+        RoIs and its losses are returned divided by
+        ``stage_loss_weights[-1]``, which the loop multiplies every loss of
+        the stage by: the total and the log carry them at the weight their
+        loss configs set (see the class doc).
 
         Args:
-            stage (int): ``num_stages - 1`` or ``-1`` (the only mask stage).
+            stage (int): The cascade stage, ``0 .. num_stages - 1`` (or
+                ``-1``, the last).
             x (tuple[Tensor]): Multi-level features.
             sampling_results (list[:obj:`SamplingResult`]): Samples of this
                 stage, per image.
@@ -165,10 +138,28 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 ``masks``.
 
         Returns:
-            dict: ``mask_preds`` (and ``edge_preds``), ``mask_targets`` and
-            ``loss_mask`` (a dict of the mask head's losses).
+            dict: ``loss_mask`` (a dict of the mask head's losses, empty
+            before the last stage) and, on the last stage, ``mask_preds``
+            (and ``edge_preds``) and ``mask_targets``.
+
+        Raises:
+            ValueError: ``stage`` is not a stage of the head, or the last
+                stage's loss weight is not positive (the mask losses could
+                not be carried at their configured weight).
         """
-        self._check_mask_stage(stage)
+        if not -self.num_stages <= stage < self.num_stages:
+            raise ValueError(
+                f'CBNetCascadeRoIHead has stages 0..{self.num_stages - 1}, '
+                f'got stage {stage}')
+        if stage % self.num_stages != self.num_stages - 1:
+            return dict(loss_mask=dict())  # no mask head on this stage
+        weight = self.stage_loss_weights[-1]
+        if not weight > 0:
+            raise ValueError(
+                f'CBNetCascadeRoIHead: stage_loss_weights[-1] must be > 0 '
+                f'(MMDet\'s cascade loop multiplies the mask losses of the '
+                f'last stage by it, this head divides them by it), got '
+                f'{weight}')
         pos_rois = bbox2roi([res.pos_priors for res in sampling_results])
         mask_results = self._mask_forward(stage, x, pos_rois)
         extra = dict(edge_preds=mask_results['edge_preds']) \
@@ -180,6 +171,10 @@ class CBNetCascadeRoIHead(CascadeRoIHead):
                 batch_gt_instances=batch_gt_instances,
                 rcnn_train_cfg=self.train_cfg[stage],
                 **extra))
+        mask_results['loss_mask'] = {
+            name: value / weight if 'loss' in name else value
+            for name, value in mask_results['loss_mask'].items()
+        }
         return mask_results
 
     def predict_mask(self,

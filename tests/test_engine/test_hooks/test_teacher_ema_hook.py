@@ -142,16 +142,20 @@ def test_teacher_checkpoint(tmp_path, prefix):
         build_hook(teacher_checkpoint=path, strict=True).before_train(runner)
 
 
-def test_eval_with_and_bad_config():
+def test_eval_with_is_the_models_and_bad_config():
+    """The model chosen for validation and testing is the model's setting
+    (CBNetDistiller's eval_with): the hook neither takes nor changes it."""
     model = ToyDistiller()
-    hook = build_hook(eval_with='teacher')
-    hook.before_val(mock_runner(model))
+    model.eval_with = 'teacher'
+    hook = build_hook()
+    runner = mock_runner(model)
+    hook.before_train(runner)
+    hook.before_val(runner)
+    hook.before_test(runner)
     assert model.eval_with == 'teacher'
-    model.eval_with = 'student'
-    hook.before_test(mock_runner(model))
-    assert model.eval_with == 'teacher'
-    for bad in (dict(momentum=1.0), dict(momentum=0), dict(interval=0),
-                dict(eval_with='ema')):
+    with pytest.raises(TypeError, match='eval_with'):
+        build_hook(eval_with='teacher')
+    for bad in (dict(momentum=1.0), dict(momentum=0), dict(interval=0)):
         with pytest.raises(ValueError):
             build_hook(**bad)
     with pytest.raises(TypeError, match='student'):

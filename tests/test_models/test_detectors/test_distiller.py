@@ -145,15 +145,23 @@ def test_bad_config_and_input(make_distiller_cfg):
     with pytest.raises(ValueError, match='eval_with'):
         MODELS.build(make_distiller_cfg(eval_with='ema'))
 
-    class OwnLossRoIHead(StandardRoIHead):  # its losses can't be reproduced
+    # a mask head fed the box features: its RoIs cannot be read
+    cfg = make_distiller_cfg()
+    cfg['detector']['roi_head'].pop('mask_roi_extractor')
+    with pytest.raises(TypeError, match='mask_roi_extractor'):
+        MODELS.build(cfg)
+
+    class NoMaskLossRoIHead(StandardRoIHead):  # never runs its mask head
 
         def loss(self, *args, **kwargs):
             return dict()
 
     with mock.patch.dict(MODELS.module_dict,
-                         StandardRoIHead=OwnLossRoIHead):
-        with pytest.raises(TypeError, match='OwnLossRoIHead'):
-            MODELS.build(make_distiller_cfg())
+                         StandardRoIHead=NoMaskLossRoIHead):
+        model = build(make_distiller_cfg())
+    model.train()
+    with pytest.raises(RuntimeError, match='NoMaskLossRoIHead ran no mask'):
+        loss_of(model, paired_batch())
     model = build(make_distiller_cfg())
     data = demo_mm_inputs(1, [(3, 64, 96)], num_classes=8, with_mask=True)
     data = model.data_preprocessor(data, True)

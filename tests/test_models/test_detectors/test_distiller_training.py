@@ -24,7 +24,7 @@ def train_pipeline():
 def test_short_training_logs_loss_distill(paired_root, make_distiller_cfg,
                                           tmp_path):
     runner = Runner(
-        model=make_distiller_cfg(),
+        model=make_distiller_cfg(eval_with='teacher'),
         work_dir=str(tmp_path),
         train_dataloader=dict(
             batch_size=2,
@@ -43,8 +43,7 @@ def test_short_training_logs_loss_distill(paired_root, make_distiller_cfg,
             optimizer=dict(type='AdamW', lr=1e-4, weight_decay=0.01)),
         train_cfg=dict(by_epoch=False, max_iters=4),
         custom_hooks=[
-            dict(type='CBNetTeacherEMAHook', momentum=0.99,
-                 eval_with='teacher')
+            dict(type='CBNetTeacherEMAHook', momentum=0.99)
         ],
         default_hooks=dict(
             logger=dict(type='LoggerHook', interval=1),

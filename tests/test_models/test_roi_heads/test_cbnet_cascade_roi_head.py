@@ -153,10 +153,9 @@ def test_stage_weight_does_not_scale_mask_loss():
 
 
 def test_box_losses_are_mmdets_cascade_loop():
-    """The cascade loop written out gives MMDet's ``CascadeRoIHead.loss``
-    box losses exactly (same weights, same sampling seed), and the mask
-    losses are the mask head's alone; the head keeps no state between
-    calls."""
+    """MMDet's cascade loop gives MMDet's ``CascadeRoIHead.loss`` box
+    losses exactly (same weights, same sampling seed), and the mask losses
+    are the mask head's alone; the head keeps no state between calls."""
     ours = MODELS.build(roi_head_cfg())
     cfg = roi_head_cfg()
     cfg.type = 'CascadeRoIHead'
@@ -176,11 +175,26 @@ def test_box_losses_are_mmdets_cascade_loop():
     assert vars(ours).keys() == vars(MODELS.build(roi_head_cfg())).keys()
 
 
-def test_mask_loss_refuses_a_stage_without_mask_head():
+def test_mask_loss_of_a_stage_without_mask_head_is_empty():
+    """MMDet's loop calls ``mask_loss`` on every stage: before the last
+    nothing runs and no loss is added; a stage the head does not have, or
+    a last stage weighted 0 (the mask losses could not be unscaled), is an
+    error."""
     head = MODELS.build(roi_head_cfg())
     feats, _, samples = unit_inputs()
-    with pytest.raises(ValueError, match='last stage only'):
-        head.mask_loss(0, feats, [], [s.gt_instances for s in samples])
+    gts = [s.gt_instances for s in samples]
+    for stage in (0, 1, -3, -2):
+        with count_calls(head.mask_head) as spy:
+            assert head.mask_loss(stage, feats, [], gts) == \
+                dict(loss_mask=dict())
+        assert spy.call_count == 0
+    for stage in (3, -4):
+        with pytest.raises(ValueError, match='stages 0..2'):
+            head.mask_loss(stage, feats, [], gts)
+    head.stage_loss_weights = [1, 0.5, 0]
+    with pytest.raises(ValueError, match=r'stage_loss_weights\[-1\] must '
+                       r'be > 0'):
+        head.mask_loss(2, feats, [], gts)
 
 
 def test_logged_mask_loss_is_the_configured_weight():
