@@ -31,8 +31,6 @@ from typing import Callable, Dict, List, Optional, Sequence
 import numpy as np
 from mmengine.config import Config
 
-from cbnet_mmdet.datasets.transforms.load_image_from_file import \
-    MMCV_LOADER_TYPES
 from cbnet_mmdet.utils.markdown import markdown_table
 
 from .ap_drop import condition_cfg, evaluate_checkpoint
@@ -55,8 +53,10 @@ CORRUPTION_GROUPS['all'] = (
     CORRUPTION_GROUPS['benchmark'] + CORRUPTION_GROUPS['holdout'])
 #: How many leading corruptions ``aggregate='benchmark'`` averages (MMDet).
 NUM_BENCHMARK = 15
-#: Loaders after which ``Corrupt`` is inserted.
-LOADER_TYPES = MMCV_LOADER_TYPES + ('CBNetLoadImageFromFile', )
+#: Loaders after which ``Corrupt`` is inserted: MMCV's (as a config may
+#: name it) and the project's checking one.
+LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
+                'mmdet.LoadImageFromFile', 'CBNetLoadImageFromFile')
 #: Metric keys summarised: (label, key of CocoMetric / our mIoU metric).
 SUMMARY_METRICS = tuple(
     (label, key) for label, key, _ in columns('box AP', 'mask AP', 'mIoU'))

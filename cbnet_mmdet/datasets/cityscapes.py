@@ -10,7 +10,6 @@ from mmengine.fileio import get_local_path
 from mmengine.logging import print_log
 
 from .coco_checks import CheckedCOCO, check_coco, read_json
-from .transforms.load_image_from_file import with_checked_loader
 
 #: Missing images listed in the error message (the count is always given).
 MAX_LISTED = 5
@@ -44,10 +43,12 @@ class CBNetCityscapesDataset(CityscapesDataset):
     instances, crowd regions, drops per reason, images left out by
     ``filter_cfg``. The counts stay in :attr:`load_report`.
 
-    Images are loaded with :class:`CBNetLoadImageFromFile` (missing,
-    corrupt or wrongly sized image: an error naming the file) wherever the
-    pipeline names MMCV's ``LoadImageFromFile`` - the name MMDetection's
-    ``DetInferencer`` and corruption benchmark look for in the config.
+    The pipeline runs as the config names it. The project's configs load
+    training images with :class:`CBNetLoadImageFromFile` (a missing,
+    corrupt or wrongly sized image: an error naming the file) and test
+    images with MMCV's ``LoadImageFromFile`` reading through the
+    ``cbnet_image`` file backend, then ``CBNetCheckImage`` (the name
+    MMDetection's ``DetInferencer`` looks for in the test pipeline).
 
     Args:
         check_files (bool): Check at initialisation that every image
@@ -73,8 +74,6 @@ class CBNetCityscapesDataset(CityscapesDataset):
         #: ``filtered_instances`` (left out by ``filter_cfg``), ``images``,
         #: ``instances`` and ``crowd`` (loaded, after the filter).
         self.load_report: dict = {}
-        if kwargs.get('pipeline'):
-            kwargs['pipeline'] = with_checked_loader(kwargs['pipeline'])
         super().__init__(*args, **kwargs)
 
     def load_data_list(self) -> List[dict]:

@@ -12,8 +12,6 @@ from mmdet.registry import DATASETS
 from mmengine.fileio import list_from_file
 from mmengine.logging import MMLogger
 
-from .transforms.load_image_from_file import with_checked_loader
-
 #: The project's classes (MMDet's ``CityscapesDataset`` order).
 CITYSCAPES_CLASSES = ('person', 'rider', 'car', 'truck', 'bus', 'train',
                       'motorcycle', 'bicycle')
@@ -136,8 +134,6 @@ class CBNetVOCFogDataset(XMLDataset):
         self.check_files = check_files
         # the image and annotation folders sit under data_root itself
         kwargs.setdefault('data_prefix', dict(sub_data_root=''))
-        if kwargs.get('pipeline'):
-            kwargs['pipeline'] = with_checked_loader(kwargs['pipeline'])
         super().__init__(*args, **kwargs)
 
     def _ann_dir(self) -> str:

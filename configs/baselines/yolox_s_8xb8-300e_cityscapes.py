@@ -90,7 +90,7 @@ train_dataloader = dict(
             ann_file='annotations/instancesonly_filtered_gtFine_train.json',
             data_prefix=dict(img='leftImg8bit/train/'),
             pipeline=[
-                dict(type='LoadImageFromFile'),
+                dict(type='CBNetLoadImageFromFile'),  # errors naming it
                 dict(type='LoadAnnotations', with_bbox=True)
             ],
             # images without instances stay (YOLOX's setting)

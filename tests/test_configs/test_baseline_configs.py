@@ -64,8 +64,12 @@ def test_baseline_config_data_and_evaluation(path):
     for ds in (train, cfg.val_dataloader.dataset, cfg.test_dataloader.dataset):
         assert ds.type == 'CBNetCityscapesDataset'
         assert ds.data_root == 'data/cityscapes/'
+    # training names the checking loader; testing MMCV's (DetInferencer
+    # looks for that name) through the checking file backend
     loaders = [train.pipeline[0], cfg.val_dataloader.dataset.pipeline[0]]
-    assert [t.type for t in loaders] == ['LoadImageFromFile'] * 2
+    assert [t.type for t in loaders] == ['CBNetLoadImageFromFile',
+                                         'LoadImageFromFile']
+    assert loaders[1].backend_args == dict(backend='cbnet_image')
     evaluators = cfg.val_evaluator
     if isinstance(evaluators, dict):
         evaluators = [evaluators]

@@ -122,14 +122,36 @@ def test_inferencer_accepts_every_shipped_test_pipeline(path, demo):
     assert out['data_samples'].ori_shape == (128, 256)
 
 
-def test_datasets_load_with_the_checking_loader(demo):
-    """The config names MMCV's loader; our dataset runs ours in its
-    place (errors naming the file)."""
-    assert demo['cfg'].test_dataloader.dataset.pipeline[0].type == \
+def test_datasets_run_the_pipelines_their_configs_name(demo):
+    """No dataset swaps a transform: the test pipeline keeps MMCV's loader
+    (the name DetInferencer needs) reading through the checking backend,
+    the training pipeline names the checking loader."""
+    from mmcv.transforms import LoadImageFromFile
+
+    from cbnet_mmdet.datasets.transforms import CBNetLoadImageFromFile
+    cfg = demo['cfg']
+    assert cfg.test_dataloader.dataset.pipeline[0].type == \
         'LoadImageFromFile'
-    dataset = DATASETS.build(demo['cfg'].test_dataloader.dataset)
-    assert type(dataset.pipeline.transforms[0]).__name__ == \
-        'CBNetLoadImageFromFile'
+    dataset = DATASETS.build(cfg.test_dataloader.dataset)
+    loader = dataset.pipeline.transforms[0]
+    assert type(loader) is LoadImageFromFile
+    assert loader.backend_args == dict(backend='cbnet_image')
+    assert cfg.train_pipeline[0].type == 'CBNetLoadImageFromFile'
+    train = dict(cfg.test_dataloader.dataset, pipeline=cfg.train_pipeline,
+                 test_mode=False)
+    train_loader = DATASETS.build(train).pipeline.transforms[0]
+    assert type(train_loader) is CBNetLoadImageFromFile
+
+
+def test_checking_loader_in_a_test_pipeline_breaks_det_inferencer():
+    """Why the test pipelines keep MMCV's name: DetInferencer looks for a
+    transform typed exactly ``LoadImageFromFile`` and refuses ours."""
+    cfg = Config.fromfile(DEMO)
+    cfg.test_dataloader.dataset.pipeline[0].type = 'CBNetLoadImageFromFile'
+    init_default_scope('mmdet')
+    inferencer = DetInferencer.__new__(DetInferencer)
+    with pytest.raises(ValueError, match='LoadImageFromFile is not found'):
+        inferencer._init_pipeline(cfg)
 
 
 def test_det_inferencer_images_folder_and_drawings(demo, reference):

@@ -1,10 +1,9 @@
 from .check_image import CBNetCheckImage
 from .image_file_backend import CBNetImageFileBackend
-from .load_image_from_file import (CBNetLoadImageFromFile,
-                                   with_checked_loader)
+from .load_image_from_file import CBNetLoadImageFromFile
 from .paired_loading import CBNetLoadPairedImageFromFile
 
 __all__ = [
     'CBNetLoadImageFromFile', 'CBNetLoadPairedImageFromFile',
-    'with_checked_loader', 'CBNetCheckImage', 'CBNetImageFileBackend'
+    'CBNetCheckImage', 'CBNetImageFileBackend'
 ]

@@ -1,13 +1,13 @@
 """Image loading that names the file when it cannot be read.
 
-Configs name MMCV's ``LoadImageFromFile``, the type MMDetection's
-``DetInferencer`` looks for (and replaces by its own loader) and after
-which its corruption benchmark inserts ``Corrupt``. The CBNet datasets load
-with :class:`CBNetLoadImageFromFile`, its subclass with clear errors, in
-its place (:func:`with_checked_loader`), so training and testing get the
-checks and MMDet's tools still recognise the pipeline.
+The project's training pipelines name :class:`CBNetLoadImageFromFile`.
+Its test pipelines name MMCV's ``LoadImageFromFile`` (the exact type
+MMDetection's ``DetInferencer`` looks for and replaces by its own loader)
+reading through the ``cbnet_image`` file backend
+(:class:`CBNetImageFileBackend`), followed by ``CBNetCheckImage``. No
+dataset changes the transforms its config names.
 """
-from typing import Optional, Sequence
+from typing import Optional
 
 from mmcv.transforms import LoadImageFromFile
 from mmdet.registry import TRANSFORMS
@@ -60,29 +60,3 @@ class CBNetLoadImageFromFile(LoadImageFromFile):
                     f'{out["img"].shape[1]} (HxW) but its annotations say '
                     f'{expected[0]}x{expected[1]}')
         return out
-
-
-#: How a pipeline config may name MMCV's loader.
-MMCV_LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
-                     'mmdet.LoadImageFromFile', LoadImageFromFile)
-
-
-def with_checked_loader(pipeline: Sequence) -> list:
-    """Swap MMCV's ``LoadImageFromFile`` for :class:`CBNetLoadImageFromFile`.
-
-    Args:
-        pipeline (Sequence): Transform configs (dicts) or built transforms,
-            as a dataset's ``pipeline`` argument takes them.
-
-    Returns:
-        list: A new list; each config whose ``type`` is MMCV's loader is a
-        copy with ``type=CBNetLoadImageFromFile`` and the same arguments.
-        Everything else (built transforms included) is kept as it is.
-    """
-    swapped = []
-    for transform in pipeline:
-        if isinstance(transform, dict) and \
-                transform.get('type') in MMCV_LOADER_TYPES:
-            transform = {**transform, 'type': CBNetLoadImageFromFile}
-        swapped.append(transform)
-    return swapped

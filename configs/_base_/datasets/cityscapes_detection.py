@@ -5,7 +5,8 @@
 _base_ = './cityscapes_instance.py'
 
 train_pipeline = [
-    dict(type='LoadImageFromFile', backend_args={{_base_.backend_args}}),
+    # as the instance base: errors naming a missing or corrupt image
+    dict(type='CBNetLoadImageFromFile', backend_args={{_base_.backend_args}}),
     dict(type='LoadAnnotations', with_bbox=True),
     # multi-scale training, shorter side 800-1024 (MMDet's Cityscapes recipe)
     dict(

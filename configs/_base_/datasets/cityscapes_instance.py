@@ -12,11 +12,10 @@ backend_args = None
 val_ann_file = 'annotations/instancesonly_filtered_gtFine_val.json'
 val_ann_path = data_root + val_ann_file  # what the evaluators read
 
-# MMCV's loader name, which MMDet's DetInferencer and corruption benchmark
-# look for; the CBNet datasets load with CBNetLoadImageFromFile (errors
-# naming the file) in its place
 train_pipeline = [
-    dict(type='LoadImageFromFile', backend_args=backend_args),
+    # MMCV's loader with errors naming a missing, corrupt or wrongly sized
+    # image
+    dict(type='CBNetLoadImageFromFile', backend_args=backend_args),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     # multi-scale training, shorter side 800-1024 of the 2048x1024 images
     # (MMDet's Cityscapes recipe)

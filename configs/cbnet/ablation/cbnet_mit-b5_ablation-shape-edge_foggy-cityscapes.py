@@ -6,7 +6,7 @@
 _base_ = '../cbnet_mit-b5_nasfpn-crpn_8xb1-12e_foggy-cityscapes.py'
 
 train_pipeline = [
-    dict(type='LoadImageFromFile'),  # MMCV's name (see the dataset base)
+    dict(type='CBNetLoadImageFromFile'),  # as the dataset base
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     dict(
         type='RandomResize',

@@ -26,11 +26,10 @@ trunk = dict(
     init_cfg=None)
 trunk_channels = [32, 64, 160, 256]  # MiT-B0 stage widths
 
-# MMCV's loader name, which MMDet's DetInferencer and corruption benchmark
-# look for; the CBNet datasets load with CBNetLoadImageFromFile (errors
-# naming the file) in its place
 train_pipeline = [
-    dict(type='LoadImageFromFile'),
+    # MMCV's loader with errors naming a missing, corrupt or wrongly sized
+    # image
+    dict(type='CBNetLoadImageFromFile'),
     dict(type='LoadAnnotations', with_bbox=True, with_mask=True),
     dict(type='Resize', scale=img_scale, keep_ratio=True),
     dict(type='RandomFlip', prob=0.5),

@@ -19,7 +19,7 @@ fog_dataset = dict(
     val_fraction=0.3,
     split_seed=0)
 fog_train_pipeline = [
-    dict(type='LoadImageFromFile'),
+    dict(type='CBNetLoadImageFromFile'),  # errors naming the image
     dict(type='LoadAnnotations', with_bbox=True),
     dict(type='Resize', scale=fog_img_scale, keep_ratio=True),
     dict(type='RandomFlip', prob=0.5),
