@@ -10,6 +10,7 @@
 * the README's "single components" snippet builds under MMDetection's
   stock Mask R-CNN through ``_base_`` inheritance, as a user would use it.
 """
+import argparse
 import glob
 import inspect
 import os.path as osp
@@ -213,12 +214,68 @@ def test_documented_command_parses(doc, tool, argv, restore_environ,
     # the parser reads sys.argv where parse_args takes no argv
     monkeypatch.setattr(sys, 'argv', [f'tools/{tool}'] + argv)
     takes_argv = bool(inspect.signature(module.parse_args).parameters)
+    parsers = []
+    parse = argparse.ArgumentParser.parse_args
+
+    def recording(parser, *args, **kwargs):
+        parsers.append(parser)
+        return parse(parser, *args, **kwargs)
+
+    monkeypatch.setattr(argparse.ArgumentParser, 'parse_args', recording)
     try:
-        module.parse_args(argv) if takes_argv else module.parse_args()
+        args = module.parse_args(argv) if takes_argv else module.parse_args()
     except SystemExit as err:
         raise AssertionError(
             f'{doc}: `python tools/{tool} {" ".join(argv)}` is refused by '
             f'the tool\'s arguments') from err
+    assert parsers, f'{tool}: parse_args parsed nothing'
+    wrong = misparsed(parsers[-1], args, argv)
+    assert not wrong, (f'{doc}: `python tools/{tool} {" ".join(argv)}`: '
+                       f'(argument, documented, parsed): {wrong}')
+
+
+def misparsed(parser, args, argv):
+    """(argument, documented value, parsed value) of every plain argument
+    of ``argv`` (a positional or an option storing one value, or a flag)
+    whose value in the parsed ``args`` is not the documented one."""
+    options = {s: a for a in parser._actions for s in a.option_strings}
+    positionals = [a for a in parser._actions
+                   if not a.option_strings and a.nargs is None]
+    checks, loose, i = [], [], 0
+    while i < len(argv):
+        word = argv[i]
+        name, _, inline = word.partition('=')
+        action = options.get(name) if word.startswith('-') else None
+        if action is None:
+            if not word.startswith('-'):
+                loose.append(word)
+            i += 1
+        elif action.nargs == 0:  # a flag: its constant
+            checks.append((name, action, action.const, False))
+            i += 1
+        elif action.nargs is None:  # one value
+            value = inline if inline else argv[i + 1] if \
+                i + 1 < len(argv) else None
+            checks.append((name, action, value, True))
+            i += 1 if inline else 2
+        elif action.nargs == '?':  # an optional value: not checked
+            i += 1 if inline or i + 1 == len(argv) or \
+                argv[i + 1].startswith('-') else 2
+        else:  # a list: its values are not checked one by one
+            i += 1
+            while i < len(argv) and not argv[i].startswith('--'):
+                i += 1
+    checks += [(a.dest, a, word, True) for a, word in zip(positionals, loose)]
+    wrong = []
+    for name, action, value, convert in checks:
+        if type(action).__name__ not in ('_StoreAction', '_StoreTrueAction',
+                                         '_StoreFalseAction',
+                                         '_StoreConstAction'):
+            continue  # a custom action (DictAction...) keeps its own form
+        expected = (action.type or str)(value) if convert else value
+        if getattr(args, action.dest) != expected:
+            wrong.append((name, expected, getattr(args, action.dest)))
+    return wrong
 
 
 def tabulated_records():
@@ -290,7 +347,14 @@ def test_documented_train_command_builds_config_and_visualizer(
     vis_cfg = dict(cfg.visualizer)
     vis_cfg.update(name=f'doc_vis_{tmp_path.name}', save_dir=str(tmp_path))
     visualizer = VISUALIZERS.build(vis_cfg)
-    assert visualizer is not None
+    assert type(visualizer).__name__ == vis_cfg['type'].split('.')[-1]
+    # every backend the config (with the command's options) names is there
+    backends = vis_cfg.get('vis_backends') or []
+    assert backends, f'{doc}: the config names no visualisation backend'
+    for backend in backends:
+        name = backend.get('name', backend['type'])
+        built = visualizer.get_backend(name)
+        assert type(built).__name__ == backend['type'].split('.')[-1], name
 
 
 def test_visualization_doc_tensorboard_command(tmp_path, restore_environ):

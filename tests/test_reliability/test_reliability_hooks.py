@@ -34,9 +34,12 @@ def batch(*paths):
     ])
 
 
-def test_registered():
-    for name in ('CBNetNonFiniteLossHook', 'CBNetRNGStateHook'):
-        assert HOOKS.get(name) is not None
+def test_registered_names_build_these_classes():
+    for name, cls in (('CBNetNonFiniteLossHook', CBNetNonFiniteLossHook),
+                      ('CBNetRNGStateHook', CBNetRNGStateHook)):
+        assert HOOKS.get(name) is cls
+        # scoped: found whatever default scope an earlier test left current
+        assert type(HOOKS.build(dict(type=f'mmdet.{name}'))) is cls
 
 
 @pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])

@@ -66,11 +66,33 @@ def test_array_without_three_channels_refused(demo, shape):
         inference_detector(model, array)
 
 
-def test_good_array_still_predicts(demo):
+def test_good_array_and_file_predict_as_without_the_check(demo):
+    """A good H x W x 3 array, and the same image as a PNG file, give the
+    model's predictions on a pipeline without CBNetCheckImage (the check
+    changes nothing)."""
+    import cv2
+    from mmcv.transforms import Compose
     rng = np.random.default_rng(0)
     image = rng.integers(0, 255, (64, 128, 3), dtype=np.uint8)
-    result = demo['inferencer'](image, return_datasamples=True)
-    assert result['predictions'][0].pred_instances is not None
+    png = str(demo['tmp'] / 'good.png')
+    cv2.imwrite(png, image)
+    inferencer = demo['inferencer']
+    cfg = Config.fromfile(DEMO)
+    steps = [t for t in cfg.test_dataloader.dataset.pipeline
+             if t['type'] not in ('CBNetCheckImage', 'LoadAnnotations')]
+    steps[0] = dict(type='mmdet.LoadImageFromNDArray')
+    item = Compose(steps)(dict(img=image.copy()))
+    with torch.no_grad():
+        expected = inferencer.model.test_step(dict(
+            inputs=[item['inputs']],
+            data_samples=[item['data_samples']]))[0].pred_instances
+    assert len(expected) > 0  # random weights still detect something
+    for source in (image, png):
+        got = inferencer(source, return_datasamples=True)[
+            'predictions'][0].pred_instances
+        torch.testing.assert_close(got.bboxes, expected.bboxes)
+        torch.testing.assert_close(got.scores, expected.scores)
+        assert torch.equal(got.labels, expected.labels)
 
 
 @pytest.mark.parametrize('via', ['DetInferencer', 'init_detector'])
