@@ -3,8 +3,8 @@ atmospheric scattering model and a ground-plane row prior.
 
 References are computed here from the formula, pixel by pixel in float64
 (``I = J t + 255 A (1 - t)``, ``t = exp(-beta d)``, ``d = h f / (v - v_h)``
-below the horizon, the far distance above it), not with the transform's
-own helpers.
+below the horizon, ``c f / (v_h - v)`` above it), not with the
+transform's own helpers.
 """
 import math
 
@@ -22,7 +22,11 @@ init_default_scope('mmdet')  # MMDet's transforms in mmcv's Compose
 
 #: A camera unlike the defaults, so the test sees every knob used.
 CAMERA = dict(
-    camera_height=1.5, focal_length=1.0, horizon=0.25, max_distance=50.0)
+    camera_height=1.5,
+    focal_length=1.0,
+    horizon=0.25,
+    ceiling_height=3.0,
+    max_distance=50.0)
 
 
 def photo(h=24, w=32, seed=0):
@@ -31,17 +35,20 @@ def photo(h=24, w=32, seed=0):
 
 
 def reference_distance(h, w, camera_height, focal_length, horizon,
-                       max_distance):
-    """``d`` of each row, metres: the ground plane seen by a level camera."""
+                       ceiling_height, max_distance):
+    """``d`` of each row, metres: the ground plane (below the horizon) and
+    the ceiling plane (above it) seen by a level camera."""
     out = []
     for i in range(h):
         v = i + 0.5  # row centre, pixels from the top
         below = v - horizon * h
         if below > 0:
-            out.append(
-                min(camera_height * focal_length * w / below, max_distance))
+            d = camera_height * focal_length * w / below
+        elif below < 0 and ceiling_height is not None:
+            d = ceiling_height * focal_length * w / -below
         else:
-            out.append(max_distance)
+            d = max_distance
+        out.append(min(d, max_distance))
     return out
 
 
@@ -76,17 +83,29 @@ def test_beta_zero_is_identity(dtype):
     np.testing.assert_array_equal(foggy, img)
 
 
-def test_transmission_against_reference():
+@pytest.mark.parametrize('ceiling', [3.0, None])
+def test_transmission_against_reference(ceiling):
     h, w, beta = 8, 10, 0.07
-    fog = build(beta=beta, **CAMERA)
-    dist = reference_distance(h, w, **CAMERA)
-    # rows 0-1 are above the horizon (v_h = 2 px): the far distance
-    assert dist[:2] == [50.0, 50.0]
+    camera = dict(CAMERA, ceiling_height=ceiling)
+    fog = build(beta=beta, **camera)
+    dist = reference_distance(h, w, **camera)
+    # rows 0-1 are above the horizon (v_h = 2 px): the ceiling 3 m above
+    # the camera at 3 * 10 / 1.5 = 20 m (row 0) and 3 * 10 / 0.5 = 60 m,
+    # beyond the 50 m clamp (row 1); without a ceiling both at the clamp;
+    # rows below: the road
+    assert dist[:2] == ([20.0, 50.0] if ceiling else [50.0, 50.0])
     assert dist[7] == pytest.approx(1.5 * 10 / 5.5)
     np.testing.assert_allclose(fog.distance(h, w), dist, rtol=1e-12)
     np.testing.assert_allclose(
         fog.transmission(h, w, beta), [math.exp(-beta * d) for d in dist],
         rtol=1e-12)
+
+
+def test_horizon_row_is_farthest():
+    # 9 rows, horizon at 4.5 px: the centre of row 4
+    dist = build(horizon=0.5).distance(9, 16)
+    assert dist[4] == 600.0
+    assert (np.diff(dist[:5]) > 0).all() and (np.diff(dist[4:]) < 0).all()
 
 
 @pytest.mark.parametrize('light', [(0.82, 0.83, 0.85), (1.0, 0.6, 0.2)])
@@ -115,13 +134,15 @@ def test_image_against_reference(light):
 
 def test_channel_order():
     img = np.zeros((6, 4, 3), np.uint8)
-    # beta 1/m over >= 600 m above the horizon: t = exp(-600), pure light
+    # no ceiling: every row at or above the horizon (here all) at 600 m;
+    # beta 1/m gives t = exp(-600), pure light
     for order, pixel in (('bgr', [51, 153, 255]), ('rgb', [255, 153, 51])):
         out = build(
             beta=1.0,
             atmospheric_light=(1.0, 0.6, 0.2),
             channel_order=order,
-            horizon=1.0)(
+            horizon=1.0,
+            ceiling_height=None)(
                 dict(img=img.copy()))
         np.testing.assert_array_equal(out['img'],
                                       np.broadcast_to(pixel, img.shape))
@@ -213,6 +234,7 @@ def test_prob_and_seed_reproducible():
     (dict(focal_length=-1.0), ValueError, 'focal_length'),
     (dict(max_distance=float('inf')), ValueError, 'max_distance'),
     (dict(horizon=float('nan')), ValueError, 'horizon'),
+    (dict(ceiling_height=0.0), ValueError, 'ceiling_height'),
 ])
 def test_bad_arguments(kwargs, error, match):
     with pytest.raises(error, match=match):
@@ -236,8 +258,8 @@ def test_bad_images(img, error, match):
 def test_repr_names_every_knob():
     text = repr(build(beta=(0.005, 0.02), prob=0.5, **CAMERA))
     for word in ('beta=(0.005, 0.02)', 'prob=0.5', 'camera_height=1.5',
-                 'focal_length=1.0', 'horizon=0.25', 'max_distance=50.0',
-                 'atmospheric_light', 'channel_order'):
+                 'focal_length=1.0', 'horizon=0.25', 'ceiling_height=3.0',
+                 'max_distance=50.0', 'atmospheric_light', 'channel_order'):
         assert word in text
 
 
