@@ -97,8 +97,8 @@ class CBNetAddFog(BaseTransform):
     with ``J`` the clear image (0-255), ``A`` the atmospheric light in
     [0, 1] per channel, ``beta`` the attenuation coefficient in 1/m
     (meteorological visibility ``2.996 / beta``: 150 m at 0.02) and ``d``
-    the distance in metres, here a **ground-plane prior** of the image row
-    instead of a measured depth: a level pinhole camera at height ``h``
+    the distance in metres, here a **prior from the image row** instead of
+    a measured depth: a level pinhole camera at height ``h``
     (``camera_height``) between a flat road and a "ceiling" plane ``c``
     (``ceiling_height``) above it, focal length ``f = focal_length * W``
     pixels, horizon at row ``v_h = horizon * H``; the plane seen at the
@@ -156,8 +156,9 @@ class CBNetAddFog(BaseTransform):
             ``channel_order``); or ``'dark_channel'``: estimated on each
             image as He et al. do, the brightest pixel (largest B+G+R) among
             the 0.1% brightest pixels of its dark channel (minimum over
-            channels and a 15 x 15 window). Defaults to (0.82, 0.83, 0.85),
-            the light of the generated foggy scenes.
+            channels and a 15 x 15 window; numpy and OpenCV on the image,
+            so the transform needs no model code). Defaults to (0.82, 0.83,
+            0.85), the light of the generated foggy scenes.
         channel_order (str): ``'bgr'`` (``LoadImageFromFile``'s default) or
             ``'rgb'``: where R, G, B of ``atmospheric_light`` go.
         camera_height (float): ``h``, metres, > 0. Defaults to 1.3.
