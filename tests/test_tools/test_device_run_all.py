@@ -176,6 +176,19 @@ def test_a_command_within_its_box_keeps_its_exit_status(tmp_path):
     assert (tmp_path / 'work' / 'logs' / 'three.log').read_text() == 'hi\n'
 
 
+def test_harness_processes_run_at_once_and_a_failure_shows(tmp_path):
+    r = runner(tmp_path)
+    start = time.time()
+    res = ra.run_parallel(r, ['sleep', '1'], 4, 30, 'four', None)
+    assert res['rc'] == 0 and time.time() - start < 3.5  # not 4 s
+    assert res['command'].startswith('4 processes at once: sleep 1')
+    assert len(list((tmp_path / 'work' / 'logs').glob('four_p*.log'))) == 4
+    # one process of several failing fails the call (a plain `wait` is 0)
+    res = ra.run_parallel(r, ['bash', '-c', 'sleep 0.2; exit 4'],
+                          3, 30, 'bad', None)
+    assert res['rc'] == 4
+
+
 def test_setup_plan_names_what_the_wheels_folder_lacks(tmp_path):
     wheels = tmp_path / 'whl'
     wheels.mkdir()

@@ -671,9 +671,11 @@ def step_harness(r: Runner, env) -> dict:
 def run_parallel(r: Runner, cmd, n, box, log_name, env) -> dict:
     """``n`` copies of ``cmd`` at once (one process group), ``box``
     seconds at most."""
-    inner = ' & '.join(' '.join(map(shlex.quote, cmd)) +
-                       f' > {shlex.quote(osp.join(r.work, "logs", log_name))}'
-                       f'_p{k}.log 2>&1' for k in range(n)) + ' & wait'
+    log = shlex.quote(osp.join(r.work, 'logs', log_name))
+    # each process waited for by pid: the call fails if any of them did
+    inner = ''.join(f'{" ".join(map(shlex.quote, cmd))} > {log}_p{k}.log '
+                    '2>&1 & pids="$pids $!"; ' for k in range(n)) + \
+        'rc=0; for p in $pids; do wait $p || rc=$?; done; exit $rc'
     res = r.run(['bash', '-c', inner], box, log_name, env)
     res['command'] = f'{n} processes at once: ' + ' '.join(
         map(shlex.quote, cmd))
