@@ -15,6 +15,10 @@ tests that run a tool's ``main``/``parse_args``, which export
 Every test module must leave ``os.environ`` as it found it
 (``environment_unchanged``, autouse): a leaked variable (``LOCAL_RANK``,
 ``MASTER_PORT``...) changes how later tests and the tools they run behave.
+
+Every test skipped with reason ``'needs CUDA'`` is marked ``cuda``
+(``pytest_collection_modifyitems``): ``pytest -m cuda FILES`` runs the
+CUDA-only tests on a GPU machine (tools/device/run_all.py).
 """
 import os
 import os.path as osp
@@ -109,3 +113,18 @@ def environment_unchanged(request):
     if leaked:
         pytest.fail(f'{request.module.__name__} left os.environ changed: '
                     f'{leaked} (use monkeypatch.setenv or restore_environ)')
+
+
+#: The reason every CUDA-only test gives its skip (STYLE.md:
+#: ``skipif(not torch.cuda.is_available(), reason='needs CUDA')``).
+CUDA_SKIP_REASON = 'needs CUDA'
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark ``cuda`` every test skipped with :data:`CUDA_SKIP_REASON`, so
+    that ``pytest -m cuda`` runs the CUDA-only tests on a GPU machine
+    (tools/device/run_all.py) without each file repeating the marker."""
+    for item in items:
+        if any(m.kwargs.get('reason') == CUDA_SKIP_REASON
+               for m in item.iter_markers('skipif')):
+            item.add_marker(pytest.mark.cuda)

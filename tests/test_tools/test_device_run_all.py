@@ -1,0 +1,301 @@
+"""tools/device/run_all.py: the one-call GPU script. Its dry run (every
+step on the CPU, tiny budget) end to end, its time boxes, its set-up plan
+and the wheel it brings back."""
+import glob
+import importlib.util
+import json
+import os
+import os.path as osp
+import re
+import subprocess
+import sys
+import tarfile
+import time
+
+import pytest
+from tool_helpers import load_tool
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+SCRIPT = osp.join(ROOT, 'tools', 'device', 'run_all.py')
+
+
+def load_run_all():
+    spec = importlib.util.spec_from_file_location('run_all', SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+ra = load_run_all()
+
+
+def cuda_tests_in_tree():
+    """(file, number of CUDA-only tests), read from the sources: the
+    reference the script's test step is checked against."""
+    found = {}
+    for path in glob.glob(osp.join(ROOT, 'tests', '**', 'test_*.py'),
+                          recursive=True):
+        with open(path) as f:
+            n = len(re.findall(r"reason='needs CUDA'\)\ndef test_",
+                               f.read()))
+        if n:
+            found[osp.relpath(path, ROOT)] = n
+    return found
+
+
+def alive(pid) -> bool:
+    """Running (a killed child whose parent died first may stay a zombie
+    until someone reaps it: that is not running)."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+def runner(tmp_path, *extra):
+    args = ra.parse_args(['--work-dir', str(tmp_path / 'work'), '--out',
+                          str(tmp_path / 'out'), *extra])
+    return ra.Runner(args)
+
+
+@pytest.mark.slow
+def test_dry_run_runs_every_step_on_the_cpu(tmp_path):
+    """The dry run, as CI runs it: set-up check, the CUDA tests (skipped
+    on the CPU, but selected), the speed passes on the CPU (the AMP
+    command lines checked), the realfog set on tiny generated data with
+    two seeds in parallel; records in the harness's format, packed."""
+    out, work = tmp_path / 'out', tmp_path / 'work'
+    env = dict(os.environ, OMP_NUM_THREADS='1')
+    env.pop('OUT', None)
+    start = time.time()
+    proc = subprocess.run(
+        [sys.executable, SCRIPT, '--dry-run', '--out', str(out),
+         '--work-dir', str(work), '--data', str(tmp_path / 'no_data'),
+         '--wheels', str(tmp_path / 'no_wheels'),
+         '--speed-models', 'cbnet_mit-b0', '--budget', '900'],
+        cwd=str(tmp_path), env=env, capture_output=True, text=True,
+        timeout=600)
+    took = time.time() - start
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    with open(out / 'summary.json') as f:
+        summary = json.load(f)
+    assert summary['dry_run'] is True
+    steps = {s['name']: s for s in summary['steps']}
+    assert list(steps) == ['setup', 'tests', 'speed', 'harness']
+    assert all(s['status'] == 'ok' for s in steps.values()), steps
+    assert summary['seconds'] <= took
+    # set-up: nothing installed, the stack found, mmcv's ops without CUDA
+    assert 'nothing installed' in steps['setup']['note']
+    assert steps['setup']['probe']['mmcv_ops_cuda'] == 'not available'
+    # tests: exactly the CUDA-only tests of the tree, all skipped here
+    want = cuda_tests_in_tree()
+    assert sorted(steps['tests']['files']) == sorted(want)
+    assert steps['tests']['counts'] == dict(
+        tests=sum(want.values()), failures=0, errors=0,
+        skipped=sum(want.values()))
+    # speed: both passes measured on the CPU, the AMP ones checked
+    figures = steps['speed']['figures']
+    assert sorted(figures) == ['infer_fp32_cpu', 'train_fp32_cpu']
+    assert figures['infer_fp32_cpu']['cbnet_mit-b0']['infer_b1_median_s'] > 0
+    assert figures['train_fp32_cpu']['cbnet_mit-b0']['train_median_s'] > 0
+    (check,) = [r for r in steps['speed']['runs'] if 'checked' in r]
+    assert check['rc'] == 0 and len(check['checked']) == 2
+    assert all('--amp' in c and '--device cuda' in c and '--size 64' not in c
+               for c in check['checked'])
+    # harness: YOLOX-Tiny, seeds 0 and 1, two processes at once
+    (realfog,) = steps['harness']['sets']
+    assert realfog['processes'] == 2 and realfog['runs_finished'] == 2
+    assert realfog['missing'] == [] and realfog['status'] == 'ok'
+    assert realfog['data'] == 'tiny, generated (dry run)'
+    logs = [work / 'logs' / f'harness_realfog_p{k}.log' for k in (0, 1)]
+    trained = [log.read_text().count(': training') for log in logs]
+    assert sorted(trained) == [1, 1], trained  # one run each, in parallel
+    # records: packed, in the harness's format, no checkpoint
+    with tarfile.open(out / 'records.tar.gz') as tar:
+        names = tar.getnames()
+        record = json.load(tar.extractfile(
+            'device/harness/realfog/compare.json'))
+    assert not [n for n in names if n.endswith('.pth')]
+    assert 'device/speed/infer_fp32_cpu/benchmark.json' in names
+    assert 'device/tests/junit.xml' in names
+    assert [(r['recipe'], r['seed']) for r in record['runs']] == [
+        ('YOLOX-Tiny', 0), ('YOLOX-Tiny', 1)]
+    assert record['budget']['iters'] == 2
+    assert (out / 'run_all.log').read_text().count('step ') == 4
+
+
+def test_a_step_over_its_box_is_killed_with_its_children(tmp_path):
+    """The time box ends the whole process group (a harness step is many
+    processes), quickly, and says so."""
+    r = runner(tmp_path)
+    pid_file = tmp_path / 'child.pid'
+    start = time.time()
+    res = r.run(['bash', '-c', f'sleep 60 & echo $! > {pid_file}; wait'],
+                1, 'sleeper')
+    assert res['timed_out'] and res['rc'] != 0
+    assert time.time() - start < 15
+    child = int(pid_file.read_text())
+    time.sleep(0.2)
+    assert not alive(child)
+    assert (tmp_path / 'work' / 'logs' / 'sleeper.log').exists()
+
+
+def test_a_stopped_script_takes_its_running_step_with_it(tmp_path):
+    """SIGTERM (a caller's time limit) ends the step's process group too:
+    it runs in its own session and would otherwise outlive the call."""
+    pid_file = tmp_path / 'child.pid'
+    code = (
+        'import signal, sys, importlib.util\n'
+        f'spec = importlib.util.spec_from_file_location("ra", {SCRIPT!r})\n'
+        'ra = importlib.util.module_from_spec(spec)\n'
+        'spec.loader.exec_module(ra)\n'
+        f'args = ra.parse_args(["--work-dir", {str(tmp_path)!r}, '
+        f'"--out", {str(tmp_path / "out")!r}])\n'
+        'signal.signal(signal.SIGTERM, ra._stop)\n'
+        'try:\n'
+        f'    ra.Runner(args).run(["bash", "-c", "sleep 60 & echo $! > '
+        f'{pid_file}; wait"], 100, "x")\n'
+        'except ra.Stopped:\n'
+        '    sys.exit(7)\n')
+    proc = subprocess.Popen([sys.executable, '-c', code])
+    for _ in range(100):
+        if pid_file.exists() and pid_file.read_text().strip():
+            break
+        time.sleep(0.1)
+    proc.send_signal(15)
+    assert proc.wait(timeout=30) == 7
+    time.sleep(0.2)
+    assert not alive(int(pid_file.read_text()))
+
+
+def test_a_command_within_its_box_keeps_its_exit_status(tmp_path):
+    r = runner(tmp_path)
+    res = r.run(['bash', '-c', 'echo hi; exit 3'], 30, 'three')
+    assert res == dict(res, rc=3, timed_out=False)
+    assert (tmp_path / 'work' / 'logs' / 'three.log').read_text() == 'hi\n'
+
+
+def test_harness_processes_run_at_once_and_a_failure_shows(tmp_path):
+    r = runner(tmp_path)
+    start = time.time()
+    res = ra.run_parallel(r, ['sleep', '1'], 4, 30, 'four', None)
+    assert res['rc'] == 0 and time.time() - start < 3.5  # not 4 s
+    assert res['command'].startswith('4 processes at once: sleep 1')
+    assert len(list((tmp_path / 'work' / 'logs').glob('four_p*.log'))) == 4
+    # one process of several failing fails the call (a plain `wait` is 0)
+    res = ra.run_parallel(r, ['bash', '-c', 'sleep 0.2; exit 4'],
+                          3, 30, 'bad', None)
+    assert res['rc'] == 4
+
+
+def test_setup_plan_names_what_the_wheels_folder_lacks(tmp_path):
+    wheels = tmp_path / 'whl'
+    wheels.mkdir()
+    for name in ('mmengine-0.10.7-py3-none-any.whl',
+                 'mmdet-3.3.0-py3-none-any.whl'):
+        (wheels / name).write_bytes(b'')
+    args = ra.parse_args(['--wheels', str(wheels)])
+    plan = ra.setup_plan(args)
+    assert 'mmengine' not in plan['missing']
+    assert 'pycocotools' in plan['missing']
+    assert 'mmcv==2.1.0 (sdist or a wheel)' in plan['missing']
+    (wheels / 'mmcv-2.1.0.tar.gz').write_bytes(b'')
+    plan = ra.setup_plan(args)
+    assert plan['mmcv_sdist'].endswith('mmcv-2.1.0.tar.gz')
+    assert plan['mmcv_wheel'] is None
+    assert not any('mmcv' in m for m in plan['missing'])
+    # a wheel an earlier call built is installed instead of building
+    built = 'mmcv-2.1.0-cp312-cp312-linux_x86_64.whl'
+    (wheels / built).write_bytes(b'')
+    plan = ra.setup_plan(args)
+    assert plan['mmcv_wheel'].endswith(built)
+    assert not any('mmcv' in osp.basename(w) for w in plan['wheels'])
+
+
+def test_setup_keeps_a_stack_that_already_imports(tmp_path):
+    """A second call on a still-warm machine (here: this environment, no
+    GPU) installs and builds nothing, even without the wheels."""
+    r = runner(tmp_path, '--wheels', str(tmp_path / 'none'))
+    rec = ra.step_setup(r)
+    assert rec['status'] == 'ok' and 'kept' in rec['note']
+    assert rec['probe']['mmcv'] == '2.1.0' and 'runs' not in rec
+    assert not (tmp_path / 'work' / 'wheelhouse').exists()
+
+
+def test_setup_without_the_stack_or_its_wheels_fails_clearly(tmp_path):
+    """An interpreter without the stack (a fresh device machine) and a
+    wheels folder that lacks some: the step names them, installs
+    nothing."""
+    bare = tmp_path / 'bare_python'
+    bare.write_text('#!/bin/sh\nexit 1\n')
+    bare.chmod(0o755)
+    r = runner(tmp_path, '--wheels', str(tmp_path / 'none'), '--python',
+               str(bare))
+    rec = ra.step_setup(r)
+    assert rec['status'] == 'failed'
+    assert rec['note'].startswith('missing in --wheels: addict, mmdet, '
+                                  'mmengine')
+    assert 'mmcv==2.1.0 (sdist or a wheel)' in rec['note']
+    assert not os.listdir(tmp_path / 'work' / 'site')
+
+
+def test_the_built_wheel_comes_back_in_parts_that_join(tmp_path,
+                                                       monkeypatch):
+    monkeypatch.setattr(ra, 'PART_BYTES', 1000)
+    r = runner(tmp_path)
+    wheel = tmp_path / 'mmcv-2.1.0-cp312-cp312-linux_x86_64.whl'
+    data = os.urandom(2500)
+    wheel.write_bytes(data)
+    ra.return_wheel(r, str(wheel))
+    parts = sorted((tmp_path / 'out').glob('mmcv-wheel.part*'))
+    assert [p.name for p in parts] == [
+        'mmcv-wheel.part00', 'mmcv-wheel.part01', 'mmcv-wheel.part02']
+    assert b''.join(p.read_bytes() for p in parts) == data
+    assert (tmp_path / 'out' / 'mmcv-wheel.name').read_text().strip() == \
+        wheel.name
+    # too large for the device tool's limits: nothing, and the log says so
+    big = tmp_path / 'big.whl'
+    big.write_bytes(b'x' * 3001)
+    ra.return_wheel(r, str(big))
+    assert len(list((tmp_path / 'out').glob('mmcv-wheel.part*'))) == 3
+    assert 'too large' in (tmp_path / 'out' / 'run_all.log').read_text()
+
+
+def test_a_set_without_its_data_fails_clearly_and_trains_nothing(tmp_path):
+    r = runner(tmp_path, '--data', str(tmp_path / 'nothing'))
+    rec = ra.step_harness(r, dict(os.environ))
+    (realfog,) = rec['sets']
+    assert rec['status'] == 'failed' and realfog['status'] == 'failed'
+    assert 'data of set' in realfog['note'] and 'dawn_fog' in \
+        realfog['note']
+    assert not (tmp_path / 'work' / 'harness').exists()
+
+
+def test_a_set_left_too_little_time_is_skipped(tmp_path):
+    r = runner(tmp_path, '--budget', '100')
+    rec = ra.step_harness(r, dict(os.environ))
+    assert rec['sets'][0]['status'] == 'skipped'
+    assert 's left for it' in rec['sets'][0]['note']
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--steps', 'setup,bench'], "unknown ['bench']"),
+    (['--sets', 'nope'], "unknown 'nope'"),
+])
+def test_bad_arguments_are_refused(argv, message, capsys):
+    with pytest.raises(SystemExit):
+        ra.parse_args(argv)
+    assert message in capsys.readouterr().err
+
+
+def test_every_default_set_is_known_and_its_budget_is_the_harness_s():
+    """The sets the script runs by default exist in the harness, and
+    their arguments are ones compare_recipes.py accepts."""
+    from cbnet_lab.recipe_comparison import RECIPE_SETS
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    for name in ra.DEFAULT_SETS:
+        assert name in RECIPE_SETS and name in ra.SETS
+        for key in ('args', 'dry_args'):
+            args = tool.parse_args(['--set', name] + ra.SETS[name][key])
+            assert args.set == name and args.iters > 0
