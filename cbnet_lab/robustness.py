@@ -33,7 +33,7 @@ from mmengine.config import Config
 
 from cbnet_mmdet.datasets.transforms.load_image_from_file import \
     MMCV_LOADER_TYPES
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from .ap_drop import condition_cfg, evaluate_checkpoint
 from .metric_keys import columns
