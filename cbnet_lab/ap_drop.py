@@ -22,7 +22,7 @@ from mmengine.config import Config
 from mmengine.runner import Runner
 
 from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from .metric_keys import columns
 

@@ -31,7 +31,7 @@ import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.models.layers.cbnet_deform_conv2d import \
     deform_conv2d as gather_deform_conv2d
 from cbnet_mmdet.models.losses import boundary_loss_fused, boundary_ops
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from .benchmark import (PeakMemory, set_malloc_thresholds, summarize,
                         synchronize, time_alternately)

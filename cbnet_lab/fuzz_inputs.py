@@ -27,7 +27,7 @@ from pycocotools import mask as mask_utils
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from .config_edits import configs_root
 

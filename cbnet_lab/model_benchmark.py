@@ -12,7 +12,7 @@ import os.path as osp
 import sys
 from contextlib import nullcontext
 
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from .report import machine_info
 

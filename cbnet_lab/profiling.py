@@ -12,7 +12,7 @@ import time
 from contextlib import nullcontext
 from typing import Callable, Dict, Optional, Sequence, Tuple
 
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 from . import benchmark as B
 from .report import machine_line

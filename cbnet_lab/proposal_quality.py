@@ -12,7 +12,7 @@ from typing import Optional
 import torch
 from mmengine.dataset import pseudo_collate
 
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 RECALL_IOUS = (0.5, 0.7, 0.9)
 POSITIVE_IOUS = (0.5, 0.6, 0.7)

@@ -1,14 +1,14 @@
 """Reporting for the lab: the tables and plots of a comparison, and the
 machine a measurement ran on, written once for every tool and record.
 
-Every markdown table goes through :func:`cbnet_mmdet.utils.markdown_table`.
+Every markdown table goes through :func:`cbnet_tools.markdown_table`.
 """
 import os
 import os.path as osp
 import platform
 from typing import List, Optional, Sequence
 
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 
 def load_average() -> Optional[List[float]]:

@@ -45,8 +45,8 @@ TINY = dict(num_train=4, num_val=3, img_size=(128, 256), seed=0,
 @pytest.fixture(scope='session')
 def cityscapes_like_root():
     """Root of the tiny generated dataset, annotations converted."""
-    from cbnet_mmdet.datasets.cityscapes_to_coco import convert
-    from cbnet_mmdet.datasets.synthetic import generate_cityscapes_like
+    from cbnet_tools.cityscapes_to_coco import convert
+    from cbnet_tools.synthetic import generate_cityscapes_like
     with tempfile.TemporaryDirectory(prefix='cbnet_cityscapes_like_') as tmp:
         root = osp.join(tmp, 'cityscapes')
         generate_cityscapes_like(root, **TINY)

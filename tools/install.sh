@@ -45,11 +45,13 @@ want=$(stamp_now | sha256sum | cut -d' ' -f1)
 # `mim train cbnet_mmdet` runs `<site-packages>/cbnet_mmdet/.mim/tools/
 # train.py`, which an editable install does not have. Tests run from the
 # source tree (`python -m pytest` puts it first on sys.path, pytest's
-# `pythonpath` the project package cbnet_dehaze). The sources go into a
-# second stamp, so an edited tree is reinstalled (seconds).
+# `pythonpath` the projects' packages cbnet_dehaze and cbnet_serving). The
+# sources go into a second stamp, so an edited tree is reinstalled
+# (seconds). One install carries the five packages: the plugin, the lab,
+# the tools' library and the two projects' packages.
 PROJECT_STAMP="$VENV/.cbnet_mmdet_project_stamp"
 project_now() {
-  (cd "$ROOT" && find cbnet_mmdet cbnet_lab projects configs tools \
+  (cd "$ROOT" && find cbnet_mmdet cbnet_lab cbnet_tools projects configs tools \
      pyproject.toml README.md \
      -name __pycache__ -prune -o -type f -print 2>/dev/null \
      | LC_ALL=C sort | xargs sha256sum) || true
@@ -136,6 +138,7 @@ install_project
 python - <<'PY'
 import importlib.metadata as m
 import cbnet_mmdet, mmcv.ops, torch  # noqa: F401
+import cbnet_dehaze, cbnet_lab, cbnet_serving, cbnet_tools  # noqa: F401
 print('  ' + ', '.join(f'{p} {m.version(p)}' for p in
       ('torch', 'mmcv', 'mmengine', 'mmdet', 'cbnet_mmdet', 'setuptools',
        'numpy', 'openmim', 'ray')))

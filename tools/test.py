@@ -20,8 +20,8 @@ from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
-from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
-                                               use_gloo_on_cpu)
+from cbnet_tools.cpu_distributed import (init_gloo_process_group,
+                                         use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
 
 

@@ -8,7 +8,7 @@ import pytest
 from mmengine.registry import init_default_scope
 
 from cbnet_mmdet.datasets import CBNetVOCFogDataset
-from cbnet_mmdet.datasets.synthetic.voc_folder import voc_xml, write_voc_folder
+from cbnet_tools.synthetic.voc_folder import voc_xml, write_voc_folder
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES, seeded_split
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))

@@ -16,8 +16,8 @@ from mmengine.config import Config
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.datasets.cityscapes_to_coco import convert
-from cbnet_mmdet.datasets.synthetic import generate_cityscapes_like
+from cbnet_tools.cityscapes_to_coco import convert
+from cbnet_tools.synthetic import generate_cityscapes_like
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DEMO = osp.join(ROOT, 'configs', 'demo',

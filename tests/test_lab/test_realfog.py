@@ -12,9 +12,9 @@ from mmdet.registry import MODELS
 from mmengine.config import Config
 from tool_helpers import load_tool
 
-from cbnet_mmdet.datasets.synthetic.voc_folder import (tiny_fog_folder,
-                                                       write_voc_folder)
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
+from cbnet_tools.synthetic.voc_folder import (tiny_fog_folder,
+                                              write_voc_folder)
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report

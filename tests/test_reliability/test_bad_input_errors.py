@@ -13,7 +13,7 @@ from mmengine.logging import MMLogger
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.datasets.cityscapes_to_coco import convert
+from cbnet_tools.cityscapes_to_coco import convert
 from tiny_configs import demo_cfg, load_tool, write_cfg
 
 ANN = osp.join('annotations', 'instancesonly_filtered_gtFine_train.json')

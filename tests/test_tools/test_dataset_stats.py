@@ -2,7 +2,7 @@ import importlib.util
 import json
 import os.path as osp
 
-from cbnet_mmdet.datasets.coco_statistics import coco_statistics, load_coco
+from cbnet_tools.coco_statistics import coco_statistics, load_coco
 
 TOOL = osp.join(osp.dirname(__file__), '..', '..', 'tools', 'misc',
                 'dataset_stats.py')

@@ -37,7 +37,7 @@ def test_generate_cli(tmp_path, capsys):
 
 def test_preset_fills_what_is_not_given():
     tool = load_tool('misc/generate_cityscapes_like.py')
-    from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
+    from cbnet_tools.synthetic.presets import DATA_PRESETS
     bench = DATA_PRESETS['bench']
     args = tool.parse_args(['out', '--preset', 'bench'])
     for key, value in bench.items():

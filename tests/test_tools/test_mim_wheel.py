@@ -92,14 +92,31 @@ def test_wheel_carries_mim_configs_and_tools(wheel):
                  'cbnet_mmdet/.mim/projects/peer_dehaze/configs/realfog/'
                  'yolox_tiny_dcp_1xb4-demo_voc-fog.py',
                  'cbnet_mmdet/.mim/projects/peer_dehaze/tools/'
-                 'train_dehazer.py'):
+                 'train_dehazer.py',
+                 # the tools' library (train.py's CPU launch, the
+                 # converter, the renderer)
+                 'cbnet_tools/cpu_distributed.py',
+                 'cbnet_tools/cityscapes_to_coco.py',
+                 'cbnet_tools/synthetic/scene.py',
+                 # the serving project: package at the top level, command
+                 # lines under .mim
+                 'cbnet_serving/server.py',
+                 'cbnet_mmdet/.mim/projects/edge_serving/tools/serve.py',
+                 'cbnet_mmdet/.mim/projects/edge_serving/tools/'
+                 'edge_router.py'):
         assert path in names, path
+    # what registers nothing is not in the plugin's package
+    assert not any(n.startswith(('cbnet_mmdet/serving/',
+                                 'cbnet_mmdet/datasets/synthetic/'))
+                   for n in names)
     # real files, not links, and no byte code or tests; the project's
     # package only once, as cbnet_dehaze
     assert not any('__pycache__' in n or n.startswith('tests/')
                    for n in names)
-    assert not any(n.startswith('cbnet_mmdet/.mim/projects/peer_dehaze/'
-                                'cbnet_dehaze') for n in names)
+    assert not any(n.startswith(('cbnet_mmdet/.mim/projects/peer_dehaze/'
+                                 'cbnet_dehaze',
+                                 'cbnet_mmdet/.mim/projects/edge_serving/'
+                                 'cbnet_serving')) for n in names)
 
 
 @pytest.mark.slow  # builds a wheel and trains 4 iterations: ~1-2 min

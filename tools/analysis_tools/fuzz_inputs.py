@@ -81,8 +81,8 @@ def main():
     with tempfile.TemporaryDirectory(prefix='cbnet_fuzz_') as tmp:
         root = args.data_root
         if root is None:
-            from cbnet_mmdet.datasets.cityscapes_to_coco import convert
-            from cbnet_mmdet.datasets.synthetic import \
+            from cbnet_tools.cityscapes_to_coco import convert
+            from cbnet_tools.synthetic import \
                 generate_cityscapes_like
             root = osp.join(tmp, 'data')
             generate_cityscapes_like(root, num_train=4, num_val=1,

@@ -42,7 +42,7 @@ from cbnet_lab.robustness import (SUMMARY_METRICS,
                                   plot_fog_density,
                                   run_benchmark, summarize,
                                   to_markdown)
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 
 def parse_args(argv=None):

@@ -11,7 +11,7 @@ annotations serve Foggy Cityscapes (its images share the stems).
 """
 import argparse
 
-from cbnet_mmdet.datasets.cityscapes_to_coco import convert
+from cbnet_tools.cityscapes_to_coco import convert
 
 
 def parse_args(argv=None):

@@ -8,15 +8,14 @@ Usage::
 
 For each file: images, instances per image, per-class counts and the area
 histogram (COCO small / medium / large, finer pixel bins, relative size)
-as markdown tables (see ``cbnet_mmdet/datasets/coco_statistics.py``).
+as markdown tables (see ``cbnet_tools/coco_statistics.py``).
 ``--json`` also writes them, keyed by file.
 """
 import argparse
 import json
 
-from cbnet_mmdet.datasets.coco_statistics import (coco_statistics,
-                                                  format_statistics,
-                                                  load_coco)
+from cbnet_tools.coco_statistics import (coco_statistics,
+                                         format_statistics, load_coco)
 
 
 def parse_args(argv=None):

@@ -24,9 +24,9 @@ import os
 import os.path as osp
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
-from cbnet_mmdet.datasets.synthetic import (generate_cityscapes_like,
-                                            load_record, record_differences)
-from cbnet_mmdet.datasets.synthetic.presets import DATA_PRESETS
+from cbnet_tools.synthetic import (generate_cityscapes_like, load_record,
+                                   record_differences)
+from cbnet_tools.synthetic.presets import DATA_PRESETS
 
 #: Values without a preset (the generator's own defaults).
 DEFAULTS = dict(num_train=40, num_val=10, img_size=(256, 512), density=1.0,
@@ -118,7 +118,7 @@ def main(argv=None):
     converted = osp.isfile(osp.join(args.out_root, 'annotations',
                                     'instancesonly_filtered_gtFine_val.json'))
     if args.convert and not (reused and converted):
-        from cbnet_mmdet.datasets.cityscapes_to_coco import convert
+        from cbnet_tools.cityscapes_to_coco import convert
         convert(args.out_root, nproc=args.nproc)
 
 

@@ -1,4 +1,3 @@
-from .dark_channel import DarkChannelPrior
 from .memory_format import use_channels_last
 
-__all__ = ['DarkChannelPrior', 'use_channels_last']
+__all__ = ['use_channels_last']

@@ -20,7 +20,7 @@ from mmengine.config import Config
 from mmengine.runner import Runner
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS
-from cbnet_mmdet.utils.markdown import markdown_table
+from cbnet_tools.markdown import markdown_table
 
 
 def set_key(node, key, value):

@@ -1,0 +1,91 @@
+"""Bounded load test of a running model server.
+
+Usage::
+
+    python projects/edge_serving/tools/load_test.py http://127.0.0.1:8000 \
+        [--image IMG | --size 512 1024] [--concurrency 1 2 4] \
+        [--requests 8] [--timeout-s 120] [--out result.json]
+
+For each concurrency C, C client threads send ``--requests`` requests in
+all (divided among them) and stop: the run is bounded by the request
+count, and every request by ``--timeout-s``. Prints one markdown row per
+C: latency p50 / p90 / p99 (s), throughput (images/s), errors.
+"""
+import argparse
+import json
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import cv2
+import numpy as np
+import requests
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description='bounded server load test')
+    p.add_argument('url')
+    p.add_argument('--image', help='image file to send')
+    p.add_argument('--size', type=int, nargs=2, default=(512, 1024),
+                   metavar=('H', 'W'),
+                   help='random image size when no --image')
+    p.add_argument('--concurrency', type=int, nargs='+', default=[1, 2, 4])
+    p.add_argument('--requests', type=int, default=8,
+                   help='requests per concurrency level')
+    p.add_argument('--timeout-s', type=float, default=120)
+    p.add_argument('--out', help='write the results as JSON')
+    return p.parse_args(argv)
+
+
+def one(url, body, timeout):
+    start = time.perf_counter()
+    try:
+        ok = requests.post(url + '/predict', data=body, timeout=timeout,
+                           headers={'Content-Type': 'image/png'}
+                           ).status_code == 200
+    except requests.RequestException:
+        ok = False
+    return ok, time.perf_counter() - start
+
+
+def level(url, body, concurrency, n, timeout):
+    start = time.perf_counter()
+    with ThreadPoolExecutor(concurrency) as pool:
+        res = list(pool.map(lambda _: one(url, body, timeout), range(n)))
+    wall = time.perf_counter() - start
+    lat = np.array([t for ok, t in res if ok])
+    q = (np.percentile(lat, [50, 90, 99]).round(3).tolist()
+         if lat.size else [None] * 3)
+    return dict(concurrency=concurrency, requests=n,
+                errors=sum(not ok for ok, _ in res), p50_s=q[0], p90_s=q[1],
+                p99_s=q[2], throughput_img_s=round(lat.size / wall, 3),
+                wall_s=round(wall, 2))
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    if args.image:
+        img = cv2.imread(args.image)
+        if img is None:
+            raise FileNotFoundError(f'cannot read --image {args.image}')
+    else:
+        img = np.random.default_rng(0).integers(
+            0, 256, (*args.size, 3)).astype(np.uint8)
+    body = cv2.imencode('.png', img)[1].tobytes()
+    one(args.url, body, args.timeout_s)  # warm-up, not counted
+    rows = [level(args.url, body, c, args.requests, args.timeout_s)
+            for c in args.concurrency]
+    print('| concurrency | requests | p50 s | p90 s | p99 s | img/s | '
+          'errors |')
+    print('|---|---|---|---|---|---|---|')
+    for r in rows:
+        print(f"| {r['concurrency']} | {r['requests']} | {r['p50_s']} | "
+              f"{r['p90_s']} | {r['p99_s']} | {r['throughput_img_s']} | "
+              f"{r['errors']} |")
+    if args.out:
+        with open(args.out, 'w') as f:
+            json.dump(dict(image_shape=list(img.shape), levels=rows), f,
+                      indent=1)
+
+
+if __name__ == '__main__':
+    main()

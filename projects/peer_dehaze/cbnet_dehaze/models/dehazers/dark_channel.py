@@ -1,0 +1,174 @@
+"""The dark channel prior's estimates (He, Sun, Tang, CVPR 2009 / TPAMI
+2011): dark channel, atmospheric light and the guided-filter-refined
+transmission of the scattering model ``I = J t + A (1 - t)``.
+
+Not a registered component: the helper of the peer baseline's registered
+training-free dehazer ``CBNetDarkChannelPrior`` (beside it), which
+recovers ``J`` from ``A`` and ``t``. It lives here, with the one registered
+component built on it, rather than in the plugin (no CBNet component uses
+it) or in the serving project (a model package must not depend on a
+deployment one). The edge-serving project's haze score
+(:class:`cbnet_serving.haze.HazeEstimator`, the mean of ``t``) imports it
+from here.
+"""
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+#: Rec. 601 luma weights of R, G, B (the guided filter's grey guide).
+LUMA = (0.299, 0.587, 0.114)
+
+
+def min_filter(x: Tensor, size: int) -> Tensor:
+    """Minimum over ``size x size`` windows clipped to the image.
+
+    Separable (rows then columns) max-pooling of ``-x``; the padding is
+    ignored (max-pooling pads with -inf), so border windows are clipped.
+
+    Args:
+        x (Tensor[B, C, H, W]): input.
+        size (int): odd window side, pixels.
+
+    Returns:
+        Tensor[B, C, H, W].
+    """
+    pad = size // 2
+    x = -F.max_pool2d(-x, (1, size), stride=1, padding=(0, pad))
+    return -F.max_pool2d(-x, (size, 1), stride=1, padding=(pad, 0))
+
+
+def box_mean(x: Tensor, radius: int) -> Tensor:
+    """Mean over ``(2r+1)^2`` windows clipped to the image, in O(HW).
+
+    Separable running sums (cumulative sums along W, then H), each
+    normalised by the number of pixels inside the image, as He's guided
+    filter divides by the box filter of ones.
+
+    Args:
+        x (Tensor[B, C, H, W]): input.
+        radius (int): window radius r >= 0, pixels.
+
+    Returns:
+        Tensor[B, C, H, W].
+    """
+    for dim in (3, 2):
+        n = x.shape[dim]
+        csum = F.pad(x.cumsum(dim), (1, 0) if dim == 3 else (0, 0, 1, 0))
+        idx = torch.arange(n, device=x.device)
+        hi = (idx + radius + 1).clamp(max=n)
+        lo = (idx - radius).clamp(min=0)
+        count = (hi - lo).to(x.dtype)
+        shape = [1, 1, 1, 1]
+        shape[dim] = n
+        x = (csum.index_select(dim, hi) -
+             csum.index_select(dim, lo)) / count.view(shape)
+    return x
+
+
+def guided_filter(guide: Tensor, src: Tensor, radius: int,
+                  eps: float) -> Tensor:
+    """He's guided filter with a grey guide (He, Sun, Tang, ECCV 2010).
+
+    Args:
+        guide (Tensor[B, 1, H, W]): guidance image.
+        src (Tensor[B, 1, H, W]): image to filter.
+        radius (int): window radius, pixels.
+        eps (float): regularisation of the local linear model.
+
+    Returns:
+        Tensor[B, 1, H, W]: ``mean(a) * guide + mean(b)``.
+    """
+    mean_i = box_mean(guide, radius)
+    mean_p = box_mean(src, radius)
+    cov_ip = box_mean(guide * src, radius) - mean_i * mean_p
+    var_i = box_mean(guide * guide, radius) - mean_i * mean_i
+    a = cov_ip / (var_i + eps)
+    b = mean_p - a * mean_i
+    return box_mean(a, radius) * guide + box_mean(b, radius)
+
+
+class DarkChannelPrior:
+    """Dark channel, atmospheric light ``A`` and transmission ``t``.
+
+    1. dark channel ``D(x) = min_{y in patch(x)} min_c I_c(y)``;
+    2. atmospheric light ``A``: among the brightest ``top_fraction`` of
+       ``D``, the input pixel of highest intensity (R+G+B), per image;
+    3. transmission ``t = 1 - omega * dark(I / A)``;
+    4. refinement of ``t`` by the guided filter (grey input as guide).
+
+    Every step is batched tensor code (no per-image loop, no OpenCV), so it
+    runs on CPU and CUDA for any B, H, W. Inputs are ``Tensor[B, 3, H, W]``
+    RGB in [0, 1].
+
+    Args:
+        patch_size (int): Dark channel window side, odd, pixels. Defaults
+            to 15 (He et al.).
+        omega (float): Haze kept for depth perception, in (0, 1].
+            Defaults to 0.95.
+        t0 (float): Lower bound of the transmission. Defaults to 0.1.
+        top_fraction (float): Fraction of dark-channel pixels searched for
+            ``A``. Defaults to 0.001 (0.1%).
+        guided_radius (int): Guided filter radius, pixels. Defaults to 40
+            (He et al. use 60 at 600x400; smaller keeps detail on
+            Cityscapes' small far objects).
+        guided_eps (float): Guided filter regularisation. Defaults to 1e-3.
+        min_atmosphere (float): Lower bound of ``A`` per channel (keeps
+            all-black frames finite). Defaults to 0.05.
+    """
+
+    def __init__(self,
+                 patch_size: int = 15,
+                 omega: float = 0.95,
+                 t0: float = 0.1,
+                 top_fraction: float = 0.001,
+                 guided_radius: int = 40,
+                 guided_eps: float = 1e-3,
+                 min_atmosphere: float = 0.05) -> None:
+        name = type(self).__name__
+        if patch_size < 1 or patch_size % 2 == 0:
+            raise ValueError(f'{name}: patch_size must be odd and '
+                             f'positive, got {patch_size}')
+        if not 0 < omega <= 1 or not 0 < t0 <= 1:
+            raise ValueError(f'{name}: omega and t0 must be in (0, 1], '
+                             f'got {omega}, {t0}')
+        if not 0 < top_fraction <= 1 or guided_radius < 0:
+            raise ValueError(f'{name}: top_fraction must be in (0, 1] and '
+                             'guided_radius >= 0')
+        self.patch_size = patch_size
+        self.omega = omega
+        self.t0 = t0
+        self.top_fraction = top_fraction
+        self.guided_radius = guided_radius
+        self.guided_eps = guided_eps
+        self.min_atmosphere = min_atmosphere
+
+    def dark_channel(self, img: Tensor) -> Tensor:
+        """Tensor[B, 3, H, W] -> dark channel Tensor[B, 1, H, W]."""
+        return min_filter(img.amin(dim=1, keepdim=True), self.patch_size)
+
+    def atmospheric_light(self, img: Tensor, dark: Tensor) -> Tensor:
+        """Estimate ``A`` per image.
+
+        Args:
+            img (Tensor[B, 3, H, W]): hazy images.
+            dark (Tensor[B, 1, H, W]): their dark channels.
+
+        Returns:
+            Tensor[B, 3, 1, 1]: atmospheric light, >= ``min_atmosphere``.
+        """
+        b, _, h, w = img.shape
+        k = max(1, int(h * w * self.top_fraction))
+        top = dark.view(b, -1).topk(k, dim=1).indices  # [B, k]
+        pixels = img.view(b, 3, -1).gather(
+            2, top.unsqueeze(1).expand(-1, 3, -1))  # [B, 3, k]
+        best = pixels.sum(dim=1).argmax(dim=1)  # [B]
+        light = pixels[torch.arange(b, device=img.device), :, best]
+        return light.clamp(min=self.min_atmosphere).view(b, 3, 1, 1)
+
+    def transmission(self, img: Tensor, light: Tensor) -> Tensor:
+        """Refined transmission ``t`` in [t0, 1], Tensor[B, 1, H, W]."""
+        raw = 1 - self.omega * self.dark_channel(img / light)
+        guide = sum(w * img[:, i:i + 1] for i, w in enumerate(LUMA))
+        refined = guided_filter(guide, raw, self.guided_radius,
+                                self.guided_eps)
+        return refined.clamp(self.t0, 1.0)

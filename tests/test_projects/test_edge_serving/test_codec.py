@@ -1,0 +1,55 @@
+"""Input checks of the server (cbnet_serving.codec)."""
+import struct
+import zlib
+
+import cv2
+import numpy as np
+import pytest
+
+from cbnet_serving.codec import BadImage, decode_image
+
+
+def png_header(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width x height`` (the pixel data is a
+    few bytes: nothing that size is ever allocated)."""
+
+    def chunk(kind, data):
+        return (struct.pack('>I', len(data)) + kind + data +
+                struct.pack('>I', zlib.crc32(kind + data) & 0xffffffff))
+
+    ihdr = struct.pack('>IIBBBBB', width, height, 8, 2, 0, 0, 0)
+    return (b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', ihdr) +
+            chunk(b'IDAT', zlib.compress(b'\0' * 64)) + chunk(b'IEND', b''))
+
+
+def test_decodes_png_and_jpeg_to_bgr():
+    img = np.zeros((6, 10, 3), np.uint8)
+    img[..., 2] = 200  # red in BGR
+    ok, png = cv2.imencode('.png', img)
+    out = decode_image(png.tobytes(), 'image/png')
+    np.testing.assert_array_equal(out, img)
+    ok, jpg = cv2.imencode('.jpg', img)
+    out = decode_image(jpg.tobytes(), 'application/octet-stream')
+    assert out.shape == (6, 10, 3)
+    assert abs(int(out[..., 2].mean()) - 200) <= 3
+
+
+@pytest.mark.parametrize('body,ctype,status,words', [
+    (b'', 'image/png', 400, 'empty'),
+    (b'this is not an image', 'image/png', 400, 'not a readable image'),
+    (b'\x89PNG\r\n\x1a\n broken', 'image/png', 400, 'not a readable'),
+    (b'abc', 'application/json', 415, 'Content-Type'),
+    (b'abc', None, 415, 'Content-Type'),
+    (png_header(20000, 20000), 'image/png', 413, 'too large'),
+    (png_header(5000, 5000), 'image/png', 413, 'over the limit'),
+])
+def test_bad_input_is_a_4xx(body, ctype, status, words):
+    with pytest.raises(BadImage, match=words) as err:
+        decode_image(body, ctype)
+    assert err.value.status == status
+
+
+def test_body_size_limit():
+    with pytest.raises(BadImage) as err:
+        decode_image(b'x' * 11, 'image/png', max_bytes=10)
+    assert err.value.status == 413

@@ -1,0 +1,272 @@
+"""Offload rate vs AP (cbnet_serving.offload,
+projects/edge_serving/tools/offload_eval.py).
+
+Two fake route.py runs over a stream of clear and foggy frames of two
+annotated images: the server predicts the ground truth everywhere, the
+local model only on clear frames. AP is checked against pycocotools'
+COCOeval called directly (an independent reference), and against what it
+must be: perfect when every foggy frame is offloaded.
+"""
+import copy
+import json
+
+import numpy as np
+import pycocotools.mask as mask_utils
+import pytest
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+from tool_helpers import load_tool
+
+from cbnet_serving.offload import (check_runs, offload_curve, policy_offloads,
+                                   read_run, score, stream_annotations,
+                                   to_markdown)
+
+CLASSES = ['person', 'rider', 'car', 'truck', 'bus', 'train', 'motorcycle',
+           'bicycle']
+H, W = 40, 60
+# (image, category id, [x, y, w, h]); the categories use Cityscapes' ids
+OBJECTS = [(1, 26, [5, 5, 20, 10]), (1, 24, [30, 8, 8, 20]),
+           (2, 26, [10, 20, 30, 12])]
+
+
+def annotations():
+    images = [dict(id=i, file_name=f'city/s{i}_leftImg8bit.png', height=H,
+                   width=W) for i in (1, 2)]
+    anns = []
+    for n, (img, cat, (x, y, w, h)) in enumerate(OBJECTS, 1):
+        poly = [x, y, x + w, y, x + w, y + h, x, y + h]
+        anns.append(dict(id=n, image_id=img, category_id=cat,
+                         bbox=[x, y, w, h], area=w * h, iscrowd=0,
+                         segmentation=[poly]))
+    cats = [dict(id=i, name=c) for i, c in zip(
+        (24, 25, 26, 27, 28, 31, 32, 33), CLASSES)]
+    return dict(images=images, annotations=anns, categories=cats)
+
+
+def truth(img, classes=CLASSES):
+    """A perfect prediction of image ``img`` in pred2dict's fields."""
+    labels, boxes, masks = [], [], []
+    names = {24: 'person', 26: 'car'}
+    for i, cat, (x, y, w, h) in OBJECTS:
+        if i != img:
+            continue
+        m = np.zeros((H, W), np.uint8, order='F')
+        m[y:y + h, x:x + w] = 1
+        rle = mask_utils.encode(m)
+        rle['counts'] = rle['counts'].decode()
+        labels.append(classes.index(names[cat]))
+        boxes.append([x, y, x + w, y + h])
+        masks.append(rle)
+    return dict(labels=labels, scores=[0.9] * len(labels), bboxes=boxes,
+                masks=masks)
+
+
+NONE = dict(labels=[], scores=[], bboxes=[], masks=[])
+FRAMES = [f'{c}/s{i}_leftImg8bit{s}.png' for i in (1, 2)
+          for c, s in (('clear', ''), ('fog', '_foggy_beta_0.02'))]
+
+
+def write_run(folder, mode, preds, classes=CLASSES, where='server'):
+    folder.mkdir()
+    with open(folder / 'results.jsonl', 'w') as f:
+        for frame in FRAMES:
+            foggy = 'foggy' in frame
+            f.write(json.dumps(dict(
+                frame=frame, where=where if mode != 'local' else 'local',
+                reason='', transmission=0.4 if foggy else 0.9,
+                local_top_score=0.2 if foggy else 0.9,
+                seconds=2.0 if mode == 'server' else 0.5,
+                prediction=preds(frame))) + '\n')
+    info = dict(classes=classes)
+    json.dump(dict(router=dict(mode=mode), local=dict(classes=CLASSES),
+                   server=None if mode == 'local' else info),
+              open(folder / 'run.json', 'w'))
+    return str(folder)
+
+
+def img_of(frame):
+    return int(frame.split('/s')[1][0])
+
+
+@pytest.fixture
+def runs(tmp_path):
+    ann = tmp_path / 'ann.json'
+    json.dump(annotations(), open(ann, 'w'))
+    local = write_run(tmp_path / 'local', 'local',
+                      lambda f: NONE if 'foggy' in f else truth(img_of(f)))
+    server = write_run(tmp_path / 'server', 'server',
+                       lambda f: truth(img_of(f)))
+    return dict(ann=str(ann), local=local, server=server, tmp=tmp_path)
+
+
+def cocoeval_ap(gt, preds, iou_type):
+    """The reference: pycocotools' COCOeval on the same stream."""
+    coco = COCO()
+    coco.dataset = copy.deepcopy(gt)
+    coco.createIndex()
+    cat_ids = [c['id'] for c in gt['categories']]
+    dets = []
+    for img, pred in zip(gt['images'], preds):
+        for label, score_, box, m in zip(pred['labels'], pred['scores'],
+                                         pred['bboxes'], pred['masks']):
+            x1, y1, x2, y2 = box
+            dets.append(dict(image_id=img['id'], category_id=cat_ids[label],
+                             score=score_, bbox=[x1, y1, x2 - x1, y2 - y1],
+                             segmentation=m))
+    if not dets:
+        return 0.0
+    ev = COCOeval(coco, coco.loadRes(dets), iou_type)
+    ev.evaluate()
+    ev.accumulate()
+    ev.summarize()
+    return 100 * ev.stats[0]
+
+
+def test_stream_annotations_one_image_per_frame(runs):
+    gt = stream_annotations(runs['ann'], FRAMES)
+    assert [i['id'] for i in gt['images']] == [1, 2, 3, 4]
+    assert [i['file_name'] for i in gt['images']] == FRAMES
+    # image 1 has two objects, image 2 one; each frame has its own copies
+    assert [a['image_id'] for a in gt['annotations']] == [1, 1, 2, 2, 3, 4]
+    assert [a['id'] for a in gt['annotations']] == [1, 2, 3, 4, 5, 6]
+    with pytest.raises(ValueError, match='no .or no single. image'):
+        stream_annotations(runs['ann'], FRAMES + ['x/s9_leftImg8bit.png'])
+
+
+def test_score_matches_cocoeval(runs):
+    gt = stream_annotations(runs['ann'], FRAMES)
+    local = read_run(runs['local'])['records']
+    preds = [local[f]['prediction'] for f in FRAMES]
+    # drop one object and lower a score, so AP is neither 0 nor 100
+    preds[0] = dict(truth(1), labels=truth(1)['labels'][:1],
+                    scores=[0.3], bboxes=truth(1)['bboxes'][:1],
+                    masks=truth(1)['masks'][:1])
+    got = score(gt, preds, CLASSES)
+    for key, iou in (('bbox_mAP', 'bbox'), ('segm_mAP', 'segm')):
+        ref = cocoeval_ap(gt, preds, iou)
+        assert 0 < ref < 100
+        assert got[key] == pytest.approx(ref, abs=0.1)
+    perfect = [truth(img_of(f)) for f in FRAMES]
+    assert score(gt, perfect, CLASSES)['segm_mAP'] == pytest.approx(100)
+
+
+def test_offload_curve_haze_rule_recovers_foggy_frames(runs):
+    res = offload_curve(runs['local'], runs['server'], runs['ann'],
+                        thresholds=[0.3, 0.6],
+                        policy=dict(transmission_thr=0.0,
+                                    min_confidence=0.5),
+                        random_seeds=(0, 1), progress=lambda *_: None)
+    rows = {r['policy']: r for r in res['rows']}
+    gt = stream_annotations(runs['ann'], FRAMES)
+    local = read_run(runs['local'])['records']
+    ref_local = cocoeval_ap(gt, [local[f]['prediction'] for f in FRAMES],
+                            'segm')
+    assert rows['always local']['segm_mAP'] == pytest.approx(ref_local,
+                                                             abs=0.1)
+    assert rows['always local']['offload_rate'] == 0
+    assert rows['always server']['segm_mAP'] == pytest.approx(100)
+    # transmission 0.4 < 0.6: the two foggy frames go to the server
+    haze = rows['haze: transmission < 0.6']
+    assert haze['offload_rate'] == 0.5
+    assert haze['offloaded'] == {'clear': 0.0, '0.02': 1.0}
+    assert haze['segm_mAP'] == pytest.approx(100)
+    assert haze['seconds'] == pytest.approx((0.5 + 2.0) / 2)
+    assert rows['haze: transmission < 0.3']['offload_rate'] == 0
+    # the confidence rule alone (top score 0.2 < 0.5 on foggy frames)
+    shipped = [r for r in res['rows'] if r['policy'].startswith('shipped')]
+    assert shipped[0]['segm_mAP'] == pytest.approx(100)
+    # random offloading of 2 of 4 frames: a control, mean of two seeds
+    rand = [r for r in res['rows'] if r['policy'].startswith('random 2/4')]
+    assert len(rand) == 1
+    assert set(rand[0]['std']) == {'bbox_mAP', 'segm_mAP'}
+    assert ref_local <= rand[0]['segm_mAP'] <= 100
+    assert res['by_condition']['0.02']['local']['segm_mAP'] == 0
+    assert res['by_condition']['0.02']['server']['segm_mAP'] == \
+        pytest.approx(100)
+    table = to_markdown(res)
+    assert '| haze: transmission < 0.6 | 50% | 0% | 100% |' in table
+    assert '| 0.02 | 0.400 |' in table
+
+
+def test_live_auto_run_and_server_classes_in_another_order(runs):
+    # the server labels index ITS classes (reversed order): remapped by name
+    rev = CLASSES[::-1]
+    server = write_run(runs['tmp'] / 'server_rev', 'server',
+                       lambda f: truth(img_of(f), rev), classes=rev)
+    auto = write_run(
+        runs['tmp'] / 'auto', 'auto',
+        lambda f: truth(img_of(f), rev) if 'foggy' in f
+        else truth(img_of(f)), classes=rev)
+    # the auto run: foggy frames answered by the server, clear ones local
+    lines = [json.loads(x) for x in open(runs['tmp'] / 'auto' /
+                                         'results.jsonl')]
+    with open(runs['tmp'] / 'auto' / 'results.jsonl', 'w') as f:
+        for r in lines:
+            r['where'] = 'server' if 'foggy' in r['frame'] else 'local'
+            f.write(json.dumps(r) + '\n')
+    res = offload_curve(runs['local'], server, runs['ann'],
+                        thresholds=[0.6], auto_dir=auto, random_seeds=(0, ),
+                        progress=lambda *_: None)
+    rows = {r['policy']: r for r in res['rows']}
+    assert rows['always server']['segm_mAP'] == pytest.approx(100)
+    live = rows['live auto run (route.py --mode auto)']
+    assert live['offload_rate'] == 0.5 and live['fallbacks'] == 0
+    assert live['segm_mAP'] == pytest.approx(100)
+
+
+def test_runs_that_cannot_be_compared(runs):
+    local, server = read_run(runs['local']), read_run(runs['server'])
+    assert check_runs(local, server) == sorted(FRAMES)
+    other = copy.deepcopy(server)
+    other['records'].pop(FRAMES[0])
+    with pytest.raises(ValueError, match='different frames'):
+        check_runs(local, other)
+    other = copy.deepcopy(server)
+    other['records'][FRAMES[1]]['where'] = 'local-fallback'
+    with pytest.raises(ValueError, match='not answered by the server'):
+        check_runs(local, other)
+    other = copy.deepcopy(server)
+    other['records'][FRAMES[1]]['transmission'] = 0.1
+    with pytest.raises(ValueError, match='different local models'):
+        check_runs(local, other)
+
+
+def test_read_run_errors(runs, tmp_path):
+    with pytest.raises(FileNotFoundError, match='route.py'):
+        read_run(str(tmp_path / 'nowhere'))
+    bad = tmp_path / 'bad'
+    bad.mkdir()
+    (bad / 'results.jsonl').write_text('{"frame": "a"')
+    with pytest.raises(ValueError, match='not JSON'):
+        read_run(str(bad))
+    (bad / 'results.jsonl').write_text('')
+    with pytest.raises(ValueError, match='no frames'):
+        read_run(str(bad))
+    # no run.json (an old run): the classes must be given
+    (tmp_path / 'local' / 'run.json').unlink()
+    with pytest.raises(ValueError, match='classes='):
+        offload_curve(runs['local'], runs['server'], runs['ann'],
+                      thresholds=[0.6], progress=lambda *_: None)
+
+
+def test_policy_offloads_uses_the_routers_rule(runs):
+    recs = read_run(runs['local'])['records']
+    frames = sorted(recs)
+    got = policy_offloads(recs, frames, 0.6, 0.0)
+    assert got.tolist() == ['foggy' in f for f in frames]
+    assert policy_offloads(recs, frames, 0.0, 0.0).sum() == 0
+    assert policy_offloads(recs, frames, 0.0, 0.95).all()
+
+
+def test_offload_eval_cli(runs, capsys):
+    tool = load_tool('projects/edge_serving/tools/offload_eval.py')
+    tool.main([runs['local'], runs['server'], '--ann', runs['ann'],
+               '--thresholds', '0.6', '--out-dir', str(runs['tmp'] / 'o')])
+    out = capsys.readouterr().out
+    assert '| always server | 100% |' in out
+    res = json.load(open(runs['tmp'] / 'o' / 'offload.json'))
+    assert res['frames'] == 4
+    # edge_router.py's thresholds (0.6, 0.3) make the "shipped" row
+    assert any(r['policy'].startswith('shipped: transmission < 0.6 or '
+                                      'top score < 0.3') for r in res['rows'])
+    assert (runs['tmp'] / 'o' / 'offload.md').read_text() in out
