@@ -91,7 +91,7 @@ SETS = {
                   'test_dataloader.num_workers=0',
                   'test_dataloader.persistent_workers=False'],
         dry_needs=[],
-        tiny='cbnet_mmdet.datasets.synthetic.voc_folder:tiny_fog_folder'),
+        tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
 }
 
 #: Wheels the device image lacks (its package list: /work/.library/device
