@@ -167,6 +167,12 @@ def test_checkpoints_load_through_the_same_loader_the_same_way(runs):
     assert plain['schemes'][''] == \
         'mmengine.runner.checkpoint.load_from_local'
     assert plain['load_published'].startswith('ok ')
+    # MMEngine 0.10.7 cannot read its own training checkpoints (their
+    # message hub) with torch 2.13's weights-only default: with the
+    # plugin imported neither (no shim; docs/reliability.md)
+    for key in ('load_checkpoint', 'resume'):
+        assert plain[key].startswith('UnpicklingError: Weights only load '
+                                     'failed'), plain[key]
     for variant in ('plugin', 'swapped'):
         run = runs[variant]
         assert run['schemes'] == plain['schemes']
