@@ -65,18 +65,18 @@ def evaluate(config: str, checkpoint: str, data_root: Optional[str] = None,
              max_images: Optional[int] = None, device: str = 'cpu') -> dict:
     """:func:`proposal_quality` of a trained model on its config's test
     dataset (``data_root`` replaces the dataset's)."""
-    from mmdet.apis import init_detector
     from mmdet.registry import DATASETS
     from mmengine.config import Config
     from mmengine.registry import init_default_scope
 
     import cbnet_mmdet  # noqa: F401  (registers the components)
+    from cbnet_mmdet.utils.checkpoint.fit import init_checked_detector
     init_default_scope('mmdet')
     cfg = Config.fromfile(config)
     dataset_cfg = cfg.test_dataloader.dataset
     if data_root:
         dataset_cfg.data_root = data_root
-    model = init_detector(cfg, checkpoint, device=device)
+    model = init_checked_detector(cfg, checkpoint, device=device)
     return proposal_quality(model, DATASETS.build(dataset_cfg), max_images)
 
 

@@ -36,6 +36,10 @@ import pytest
 # the one loader of tools/ scripts (tests/test_tools/tool_helpers.py:
 # load_tool, DEMO, demo_checkpoint), importable from every test folder
 sys.path.append(osp.join(osp.dirname(osp.abspath(__file__)), 'test_tools'))
+# the toy model and test-only hooks (helper_hooks) of the reliability and
+# engine tests
+sys.path.append(osp.join(osp.dirname(osp.abspath(__file__)),
+                         'test_reliability'))
 
 #: Parameters of the tiny dataset (tests may rely on them).
 TINY = dict(num_train=4, num_val=3, img_size=(128, 256), seed=0,

@@ -17,9 +17,9 @@ import os.path as osp
 import torch
 from mmengine.config import Config, DictAction
 from mmengine.registry import RUNNERS
+from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_mmdet.engine.runner import CBNetRunner
 from cbnet_tools.cpu_distributed import (init_gloo_process_group,
                                          use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
@@ -143,8 +143,10 @@ def main(argv=None):
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
     init_gloo_process_group(cfg)
-    if 'runner_type' not in cfg:  # checked checkpoint loading
-        runner = CBNetRunner.from_cfg(cfg)
+    # as MMDetection's: the config names the runner (ours: CBNetRunner,
+    # configs/_base_/default_runtime.py)
+    if 'runner_type' not in cfg:
+        runner = Runner.from_cfg(cfg)
     else:
         runner = RUNNERS.build(cfg)
     runner.train()

@@ -1,4 +1,4 @@
-from .checkpoint.safe_globals import allow_mmengine_checkpoints
+from .checkpoint.safe_globals import mmengine_safe_globals
 from .version_check import check_versions
 
-__all__ = ['allow_mmengine_checkpoints', 'check_versions']
+__all__ = ['mmengine_safe_globals', 'check_versions']

@@ -2,6 +2,13 @@
 # (`custom_imports`) comes with the dataset bases in _base_/datasets/.
 _base_ = 'mmdet::_base_/default_runtime.py'
 
+# the runner that loads checkpoints with the project's checks (the file
+# named with its problem, weights-only with MMEngine's allow-list, no
+# diverged checkpoint resumed): MMDet's tools/train.py and mim train build
+# it as tools/train.py does (docs/reliability.md). `mmdet.`: MMEngine's
+# RUNNERS.build looks a bare name up in its root registry only
+runner_type = 'mmdet.CBNetRunner'
+
 # default_hooks rather than custom_hooks: a child config that sets its own
 # custom_hooks (CBNet-DD's teacher hook) keeps these (docs/reliability.md)
 default_hooks = dict(

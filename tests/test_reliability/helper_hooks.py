@@ -91,14 +91,17 @@ class CBNetTestToyModel(BaseModel):
 
 
 def toy_config(work_dir: str, max_iters: int = 2, lr: float = 0.01,
-               **model) -> str:
+               custom_hooks=(), **model) -> str:
     """Write a config of :class:`CBNetTestToyModel` (4 samples, batch 1,
-    a checkpoint every iteration) for ``tools/train.py``; returns its
-    path (``{work_dir}.py``)."""
+    a checkpoint every iteration, ``CBNetRunner`` as in
+    ``configs/_base_/default_runtime.py``) for ``tools/train.py``; returns
+    its path (``{work_dir}.py``)."""
     text = f'''
 custom_imports = dict(imports=['cbnet_mmdet', 'helper_hooks'],
                       allow_failed_imports=False)
 default_scope = 'mmdet'
+runner_type = 'mmdet.CBNetRunner'
+custom_hooks = {list(custom_hooks)!r}
 model = dict(type='CBNetTestToyModel', **{model!r})
 train_dataloader = dict(
     dataset=[dict(inputs=[1.0, 2.0])] * 4,
@@ -116,3 +119,26 @@ experiment_name = {'toy_' + uuid.uuid4().hex!r}  # its own logger
     with open(path, 'w') as f:
         f.write(text)
     return path
+
+
+def toy_runner(work_dir, hook, max_iters=6, runner=None, **loss_scale):
+    """An MMEngine ``Runner`` (or ``runner``, a subclass) of
+    :class:`CBNetTestToyModel` with a checkpoint every iteration and
+    ``hook``; ``loss_scale``: ``it3=1e4`` multiplies the 3rd loss."""
+    from mmengine.runner import Runner
+    scale = {k[2:]: v for k, v in loss_scale.items()}
+    return (runner or Runner)(
+        model=CBNetTestToyModel(loss_scale=scale),
+        work_dir=str(work_dir),
+        train_dataloader=dict(
+            dataset=[dict(inputs=torch.ones(2))] * 8,
+            sampler=dict(type='DefaultSampler', shuffle=False),
+            collate_fn=dict(type='pseudo_collate'),
+            batch_size=1),
+        optim_wrapper=dict(optimizer=dict(type='SGD', lr=0.01)),
+        train_cfg=dict(by_epoch=False, max_iters=max_iters),
+        default_hooks=dict(checkpoint=dict(
+            type='CheckpointHook', interval=1, by_epoch=False)),
+        custom_hooks=[hook],
+        default_scope='mmdet',
+        experiment_name='toy_' + uuid.uuid4().hex)

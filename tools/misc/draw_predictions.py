@@ -24,12 +24,13 @@ from typing import Tuple
 
 import mmcv
 import numpy as np
-from mmdet.apis import inference_detector, init_detector
+from mmdet.apis import inference_detector
 from mmdet.registry import VISUALIZERS
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.datasets.cityscapes_paths import foggy_path
 from cbnet_mmdet.evaluation.metrics import CBNetInstanceMIoUMetric
+from cbnet_mmdet.utils.checkpoint.fit import init_checked_detector
 
 
 def parse_args(argv=None):
@@ -101,7 +102,9 @@ def draw_rows(model, rows, score_thr):
 
 def main(argv=None):
     args = parse_args(argv)
-    model = init_detector(args.config, args.checkpoint, device=args.device)
+    # a checkpoint that does not fill the model is refused, not drawn
+    model = init_checked_detector(args.config, args.checkpoint,
+                                  device=args.device)
     rows = [[img] + [foggy_path(img, b) for b in args.betas]
             for img in args.images]
     if args.score_thr is None:

@@ -16,6 +16,7 @@ import torch
 from mmengine.runner import CheckpointLoader
 
 from cbnet_mmdet.models.backbones import convert_mit_checkpoint
+from cbnet_mmdet.utils import mmengine_safe_globals
 
 
 def parse_args(argv=None):
@@ -28,8 +29,9 @@ def parse_args(argv=None):
 
 def main(argv=None):
     args = parse_args(argv)
-    checkpoint = CheckpointLoader.load_checkpoint(
-        args.src, map_location='cpu')
+    with mmengine_safe_globals():  # weights-only, MMEngine's log objects
+        checkpoint = CheckpointLoader.load_checkpoint(
+            args.src, map_location='cpu')
     state_dict, ignored, layout = convert_mit_checkpoint(checkpoint)
     out_dir = osp.dirname(osp.abspath(args.dst))
     os.makedirs(out_dir, exist_ok=True)

@@ -1,6 +1,7 @@
 """Stop training at the first NaN/Inf loss or blow-up, saying where it
 happened and which checkpoint is clean."""
 import math
+import os.path as osp
 import statistics
 from collections import deque
 from typing import Deque, Dict, List, Optional, Sequence, Tuple
@@ -11,10 +12,14 @@ from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint.files import intact_checkpoints
+from cbnet_mmdet.utils.checkpoint.files import (DIVERGENCE_RECORD,
+                                                intact_checkpoints,
+                                                record_divergence)
 
 #: Image paths of the offending batch listed in the error message.
 MAX_LISTED = 8
+#: Where a checkpoint keeps the check's state.
+STATE_KEY = 'non_finite_check'
 
 
 def non_finite_items(values: Dict[str, object]) -> Dict[str, float]:
@@ -113,7 +118,17 @@ class CBNetNonFiniteLossHook(Hook):
     before it), the weights of iteration ``s - 1`` are already suspect, so
     checkpoints of iteration ``s - 2`` and earlier are clean; for bad
     parameters, those of the last check that found them finite. Later
-    checkpoints, written during the blow-up, are named as unsafe.
+    checkpoints, written during the blow-up, are named as unsafe, and
+    recorded in the work dir's ``diverged.json``
+    (:func:`~cbnet_mmdet.utils.checkpoint.files.record_divergence`):
+    ``CBNetRunner`` never resumes them (``--resume`` falls back to the
+    last clean checkpoint, saying so, or refuses when there is none).
+
+    The check's state (the running histories, the parameters' norm at the
+    start, the last iteration they were found finite) is saved in every
+    checkpoint (``checkpoint['non_finite_check']``) and restored on
+    ``--resume``, so a resumed run is judged against the losses before the
+    interruption, not against its own first iterations.
 
     The hook runs before ``CheckpointHook`` (priority ``ABOVE_NORMAL``), so
     the weights of the offending step are never saved. In distributed
@@ -165,13 +180,56 @@ class CBNetNonFiniteLossHook(Hook):
         self.first_param_norm: Optional[float] = None
         self.last_params_ok = 0  # iterations done when last found finite
         self.grad_norms_seen = 0  # length of the logged grad-norm history
+        self._loaded: Optional[dict] = None  # state of a loaded checkpoint
+        self.unsafe_checkpoints: List[str] = []  # of the last stop
+
+    def state_dict(self) -> dict:
+        """The check's state, as saved in checkpoints."""
+        return dict(
+            history={k: [list(x) for x in h]
+                     for k, h in self.history.items()},
+            first_param_norm=self.first_param_norm,
+            last_params_ok=self.last_params_ok,
+            grad_norms_seen=self.grad_norms_seen)
+
+    def before_save_checkpoint(self, runner: Runner,
+                               checkpoint: dict) -> None:
+        """Save the check's state into the checkpoint."""
+        checkpoint[STATE_KEY] = self.state_dict()
+
+    def after_load_checkpoint(self, runner: Runner, checkpoint: dict) -> None:
+        """Keep the checkpoint's state; :meth:`before_train` restores it
+        when the run resumes (``load_from`` starts a new history)."""
+        self._loaded = checkpoint.get(STATE_KEY)
 
     def before_train(self, runner: Runner) -> None:
-        """Take the parameters' norm at the start (after a resume or
-        ``load_from``) as the reference of the blow-up check."""
-        norm = self.parameter_check(runner.model)[1]
-        if math.isfinite(norm):
-            self.first_param_norm = norm
+        """On resume, restore the state the checkpoint saved; otherwise
+        take the parameters' norm now (after ``load_from``) as the
+        reference of the blow-up check."""
+        if runner.iter > 0 and self._loaded is not None:
+            state = self._loaded
+            self.history = {
+                k: deque(((int(it), float(v)) for it, v in h),
+                         maxlen=self.window)
+                for k, h in state['history'].items()
+            }
+            self.first_param_norm = state['first_param_norm']
+            self.last_params_ok = int(state['last_params_ok'])
+            self.grad_norms_seen = int(state['grad_norms_seen'])
+            runner.logger.info(
+                f'CBNetNonFiniteLossHook: resumed at iteration '
+                f'{runner.iter} with the check\'s history '
+                f'({len(self.history.get("loss", ()))} losses)')
+        elif runner.iter > 0:
+            runner.logger.warning(
+                'CBNetNonFiniteLossHook: the checkpoint resumed from holds '
+                'no state of this check (written without it): divergence '
+                'is judged from this run\'s first iterations')
+        self._loaded = None
+        if self.first_param_norm is None:
+            norm = self.parameter_check(runner.model)[1]
+            if math.isfinite(norm):
+                self.first_param_norm = norm
 
     @staticmethod
     def _where(runner: Runner, batch_idx: int) -> str:
@@ -215,6 +273,7 @@ class CBNetNonFiniteLossHook(Hook):
                                                            str) else []
         clean = [(p, it) for p, it in found if it <= clean_upto]
         unsafe = [p for p, it in found if it > clean_upto]
+        self.unsafe_checkpoints = unsafe
         began = (f'the blow-up began at iteration {onset}; '
                  if onset < now else '')
         text = f' The weights of this step were not saved; {began}'
@@ -225,9 +284,21 @@ class CBNetNonFiniteLossHook(Hook):
         else:
             text += ('no checkpoint of the work dir is clean: start again')
         if unsafe:
-            text += (f'; do NOT resume from {", ".join(unsafe)} (written '
-                     f'after the weights went bad; a plain --resume would)')
+            text += (f'; {", ".join(unsafe)} were written after the weights '
+                     f'went bad: --resume never takes them '
+                     f'({DIVERGENCE_RECORD} in the work dir says so)')
         return text + '. Lower the lr or check the data.'
+
+    def _stop(self, runner: Runner, error: type, head: str, it: int,
+              params_bad: bool = False) -> FloatingPointError:
+        """The error to raise (``head`` and the clean checkpoint); records
+        the unsafe checkpoints in the work dir."""
+        self.unsafe_checkpoints = []
+        message = head + self.clean_checkpoint(runner, it, params_bad)
+        work_dir = getattr(runner, 'work_dir', None)
+        if isinstance(work_dir, str) and osp.isdir(work_dir):
+            record_divergence(work_dir, message, self.unsafe_checkpoints)
+        return error(message)
 
     def _record(self, key: str, it: int, value: float, runner: Runner,
                 batch_idx: int, data_batch: Optional[dict]) -> None:
@@ -238,12 +309,12 @@ class CBNetNonFiniteLossHook(Hook):
             if median > 0 and value > self.blowup_factor * median:
                 seen = len(history)
                 history.append((it, value))
-                raise DivergenceError(
+                raise self._stop(
+                    runner, DivergenceError,
                     f'{key} blew up at {self._where(runner, batch_idx)}: '
                     f'{value:.4g} is more than {self.blowup_factor:g} x the '
                     f'median {median:.4g} of the last {seen} iterations'
-                    f'{self._images(data_batch)}.'
-                    + self.clean_checkpoint(runner, it))
+                    f'{self._images(data_batch)}.', it)
         history.append((it, value))
 
     def after_train_iter(self,
@@ -263,10 +334,10 @@ class CBNetNonFiniteLossHook(Hook):
         bad = non_finite_items(outputs)
         if bad:
             listed = ', '.join(f'{k}={v}' for k, v in bad.items())
-            raise FloatingPointError(
+            raise self._stop(
+                runner, FloatingPointError,
                 f'non-finite loss at {self._where(runner, batch_idx)}: '
-                f'{listed}{self._images(data_batch)}.'
-                + self.clean_checkpoint(runner, it))
+                f'{listed}{self._images(data_batch)}.', it)
         for key, value in self._running_values(runner, outputs):
             self._record(key, it, value, runner, batch_idx, data_batch)
         if self.param_interval and self.every_n_train_iters(
@@ -298,23 +369,25 @@ class CBNetNonFiniteLossHook(Hook):
                           data_batch: Optional[dict]) -> None:
         names, norm = self.parameter_check(runner.model)
         if names:
-            raise FloatingPointError(
+            raise self._stop(
+                runner, FloatingPointError,
                 f'non-finite parameters after '
                 f'{self._where(runner, batch_idx)} (finite losses, so '
                 f'the gradients were not): {", ".join(names[:5])}'
                 f'{" ..." if len(names) > 5 else ""} '
-                f'({len(names)} tensors){self._images(data_batch)}.'
-                + self.clean_checkpoint(runner, it, params_bad=True))
+                f'({len(names)} tensors){self._images(data_batch)}.', it,
+                params_bad=True)
         if self.first_param_norm is None:
             self.first_param_norm = norm
         elif self.blowup_factor and norm > self.blowup_factor * max(
                 self.first_param_norm, 1e-12):
-            raise DivergenceError(
+            raise self._stop(
+                runner, DivergenceError,
                 f'parameter norm blew up after '
                 f'{self._where(runner, batch_idx)}: {norm:.4g} is more than '
                 f'{self.blowup_factor:g} x its value at the start '
-                f'{self.first_param_norm:.4g}{self._images(data_batch)}.'
-                + self.clean_checkpoint(runner, it, params_bad=True))
+                f'{self.first_param_norm:.4g}{self._images(data_batch)}.',
+                it, params_bad=True)
         self.last_params_ok = it
 
     @classmethod

@@ -87,12 +87,13 @@ class CBNetWeightsOnlyCheckpointHook(Hook):
 
     torch >= 2.6 loads with ``weights_only=True``; MMEngine writes its
     message hub (``HistoryBuffer`` objects on NumPy arrays) into every
-    training checkpoint, which such loading refuses unless
-    :mod:`cbnet_mmdet.utils.checkpoint.safe_globals` has allow-listed them,
-    i.e. unless the process imported ``cbnet_mmdet`` first. MMDetection's
-    ``DetInferencer(weights=CKPT)`` and ``demo/image_demo.py IMG CKPT``
-    read the checkpoint before they know its config (and so before its
-    ``custom_imports``): they failed on our training checkpoints.
+    training checkpoint, which such loading refuses outside the allow-list
+    of :mod:`cbnet_mmdet.utils.checkpoint.safe_globals` (a context that
+    only ``CBNetRunner`` and the project's tools enter; importing
+    ``cbnet_mmdet`` changes nothing in torch). MMDetection's
+    ``DetInferencer(weights=CKPT)``, ``init_detector`` and
+    ``demo/image_demo.py IMG CKPT`` load with torch's default: they failed
+    on MMEngine's training checkpoints.
 
     Before a checkpoint is saved, this hook replaces everything but
     tensors and Python values by plain dicts of tensors
@@ -100,7 +101,7 @@ class CBNetWeightsOnlyCheckpointHook(Hook):
     restores the message hub, it puts the objects back
     (:func:`from_weights_only`), so ``--resume`` is unchanged. The weights
     (``state_dict``) are tensors already and are not touched. Checkpoints
-    written without the hook still load through the allow-list.
+    written without the hook load through ``CBNetRunner`` (its allow-list).
     """
 
     # last to run before saving (after every hook that adds to the

@@ -11,25 +11,17 @@ from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.logging import MMLogger
 from mmengine.model import (BaseModule, ModuleList, constant_init,
                             normal_init, trunc_normal_init)
-from mmengine.registry import MODELS as MMENGINE_MODELS
 from mmengine.runner.checkpoint import CheckpointLoader, load_state_dict
 from torch import Tensor
 from torch.nn.modules.batchnorm import _BatchNorm
 
-from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 from ..layers import CBNetMish  # noqa: F401  (registers 'CBNetMish')
 from .mit_checkpoint import convert_mit_checkpoint
 from .mit_layers import MiTEncoderLayer
 
-# mmcv 2.1 registers no Mish; the paper's activation is torch's nn.Mish.
-# Registered in MMEngine's root registry (where ``build_activation_layer``
-# looks), only if nobody else did, so ``act_cfg=dict(type='Mish')`` works.
-if 'Mish' not in MMENGINE_MODELS.module_dict:
-    MMENGINE_MODELS.register_module(name='Mish', module=nn.Mish)
-
 
 @MODELS.register_module()
-class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
+class CBNetMiT(BaseModule):
     """Mix Vision Transformer with Mish and CSPE (CBNet, section II.A).
 
     SegFormer's MiT encoder (Xie et al., 2021): four stages, each an
@@ -63,7 +55,7 @@ class CBNetMiT(StrictCheckpointFitMixin, BaseModule):
             blocks to this value. Defaults to 0.1.
         act_cfg (dict): FFN activation. Defaults to
             ``dict(type='CBNetMish')``, the paper's Mish with a faster CPU
-            kernel (``dict(type='Mish')`` is ``torch.nn.Mish``, the same
+            kernel (``dict(type=torch.nn.Mish)`` is torch's, the same
             function); ``dict(type='GELU')`` is SegFormer's.
         norm_cfg (dict): Token normalisation. Defaults to
             ``dict(type='LN', eps=1e-6)``.

@@ -13,6 +13,7 @@ import torch.nn.functional as F
 from mmcv.cnn import build_norm_layer
 from mmdet.models.backbones.pvt import MixFFN, SpatialReductionAttention
 from mmdet.models.layers import nchw_to_nlc, nlc_to_nchw
+from mmdet.registry import MODELS
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.model import BaseModule
 from torch import Tensor
@@ -214,6 +215,11 @@ class MiTEncoderLayer(BaseModule):
             cspe_cfg=cspe_cfg,
             query_chunk=query_chunk)
         self.norm2 = build_norm_layer(norm_cfg, embed_dims)[1]
+        # mmcv's build_activation_layer looks in MMEngine's root registry
+        # only: a name is resolved in MMDetection's (ours, then the root)
+        act_cfg = dict(act_cfg)
+        if isinstance(act_cfg['type'], str) and MODELS.get(act_cfg['type']):
+            act_cfg['type'] = MODELS.get(act_cfg['type'])
         self.ffn = TokenMixFFN(
             embed_dims=embed_dims,
             feedforward_channels=feedforward_channels,

@@ -7,7 +7,6 @@ from mmdet.registry import MODELS
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.config import ConfigDict
 
-from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 
 # Stage 1 (anchor refinement) assigns by the anchor-centre region of each
 # ground truth, without sampling; stage 2 (proposal refinement) by IoU with
@@ -39,8 +38,7 @@ DEFAULT_TRAIN_CFG = (
 
 
 @MODELS.register_module()
-class CBNetCascadeRPNHead(StrictCheckpointFitMixin,
-                          CascadeRPNHead):
+class CBNetCascadeRPNHead(CascadeRPNHead):
     """Cascade RPN with the CBNet training objective (paper (2), (3)).
 
     Two ``StageCascadeRPNHead`` stages (Vu et al. 2019) on a pyramid:

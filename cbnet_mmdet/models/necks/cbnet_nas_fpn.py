@@ -9,7 +9,6 @@ from mmdet.registry import MODELS
 from mmdet.utils import MultiConfig, OptConfigType
 from torch import Tensor
 
-from ...utils.checkpoint.fit import StrictCheckpointFitMixin
 from ..utils import use_channels_last
 
 # The searched NAS-FPN cell graph (Ghiasi et al. 2019, as in MMDet's
@@ -18,7 +17,7 @@ NUM_GRAPH_LEVELS = 5
 
 
 @MODELS.register_module()
-class CBNetNASFPN(StrictCheckpointFitMixin, NASFPN):
+class CBNetNASFPN(NASFPN):
     """NAS-FPN adapter for the Mix Transformer stages (paper Sec. II.A).
 
     The four MiT stage outputs (strides 4/8/16/32, different widths) are

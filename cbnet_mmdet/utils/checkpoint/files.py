@@ -1,18 +1,25 @@
 """Checkpoint files: checked reading, resuming, release and student export.
 
-:func:`read_checkpoint` reads a checkpoint weights-only and names the file
-and the problem when it is missing, empty, truncated, foreign or no
-PyTorch file; :func:`resume_checkpoint` picks what ``--resume`` continues
-from (``last_checkpoint`` resolved inside the work dir, the newest intact
-checkpoint when the latest is damaged).
+:func:`check_checkpoint_file` refuses a file that is not a PyTorch
+checkpoint, naming it and what it looks like (``torch.load`` on a PNG
+passed by mistake fails with advice to turn ``weights_only`` off, which is
+never the fix). :func:`read_checkpoint` reads a checkpoint weights-only,
+with MMEngine's allow-list in force only while it reads
+(:func:`~cbnet_mmdet.utils.checkpoint.safe_globals.mmengine_safe_globals`),
+and names the file and the problem when it is missing, empty, truncated,
+foreign or no PyTorch file; :func:`resume_checkpoint` picks what
+``--resume`` continues from (``last_checkpoint`` resolved inside the work
+dir, the newest intact checkpoint when the latest is damaged, never one
+that :data:`DIVERGENCE_RECORD` names as written after the weights went
+bad). ``CBNetRunner`` and the project's tools call them; importing the
+package registers nothing with MMEngine's ``CheckpointLoader``.
 
 :func:`publish_checkpoint` follows MMDetection's
 ``tools/model_converters/publish_model.py`` (OpenMMLab, Apache-2.0): keep
 only ``meta`` and ``state_dict``, save, and put the first 8 hex digits of
 the file's SHA-256 into its name. Unlike that script it loads with
-``weights_only`` (the project's allow-list, see
-:mod:`cbnet_mmdet.utils.checkpoint.safe_globals`), hashes in Python and
-renames synchronously, so the returned path exists when it returns.
+``weights_only`` (the project's allow-list), hashes in Python and renames
+synchronously, so the returned path exists when it returns.
 
 :func:`extract_detector` turns a CBNet-DD (``CBNetDistiller``) checkpoint
 into a plain CBNet one: the ``student.`` (or ``teacher.``) weights without
@@ -23,17 +30,84 @@ distiller's ``detector``, so that MMDetection's ``DetInferencer`` and
 import copy
 import glob
 import hashlib
+import json
 import os
 import os.path as osp
 import pickle
+import re
+import zipfile
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import torch
 from mmengine.config import Config
 from mmengine.runner import CheckpointLoader
 
-from .file_check import check_checkpoint_file, refused
+from .safe_globals import mmengine_safe_globals
 
+#: How a file written by ``torch.save`` starts: a zip archive (the format
+#: since torch 1.6) or a pickle (protocol 2+, the legacy format).
+CHECKPOINT_MAGIC = (b'PK\x03\x04', b'\x80')
+#: Leading bytes of files people pass by mistake, for the message.
+KNOWN_FORMATS = ((b'\x89PNG', 'a PNG image'), (b'\xff\xd8\xff', 'a JPEG '
+                 'image'), (b'GIF8', 'a GIF image'), (b'BM', 'a BMP image'),
+                 (b'{', 'a JSON file'), (b'#', 'a text / Python file'),
+                 (b'%PDF', 'a PDF'))
+#: What a checkpoint is, in messages.
+WHAT_FITS = ('a .pth file written by torch.save (tools/train.py writes '
+             'them into the work dir)')
+
+
+class DivergedRunError(ValueError):
+    """``--resume`` of a run that diverged, with no clean checkpoint."""
+
+
+def check_checkpoint_file(filename: str) -> None:
+    """Raise a clear error when ``filename`` is not a ``torch.save`` file.
+
+    Only the file's size and first bytes are read (and, for a zip archive,
+    its directory at the end), so this is cheap on a large checkpoint. The
+    one check behind every checkpoint the project reads
+    (:func:`read_checkpoint`).
+
+    Args:
+        filename (str): Local path.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file is empty, a truncated zip archive (an
+            interrupted save or copy), or does not start like a file
+            ``torch.save`` writes (the message names what it looks like).
+    """
+    if not osp.isfile(filename):
+        raise FileNotFoundError(f'checkpoint not found: {filename}')
+    size = osp.getsize(filename)
+    if size == 0:
+        raise ValueError(f'checkpoint {filename} is empty (0 bytes): an '
+                         f'interrupted save? A checkpoint is {WHAT_FITS}')
+    with open(filename, 'rb') as f:
+        head = f.read(8)
+    if head.startswith(CHECKPOINT_MAGIC[0]):
+        if not zipfile.is_zipfile(filename):
+            raise ValueError(
+                f'checkpoint {filename} is truncated or damaged ({size} '
+                f'bytes, no zip directory at its end): an interrupted save '
+                f'or copy? Use an earlier checkpoint')
+        return
+    if head.startswith(CHECKPOINT_MAGIC[1]):
+        return
+    looks = next((name for magic, name in KNOWN_FORMATS
+                  if head.startswith(magic)), None)
+    what = f'it looks like {looks}' if looks else \
+        f'it starts with {head[:4]!r}, neither a zip archive nor a pickle'
+    raise ValueError(
+        f'{filename} is not a PyTorch checkpoint ({what}); a checkpoint '
+        f'is {WHAT_FITS}. Did you swap the image and the checkpoint '
+        f'arguments?')
+
+
+#: Written into the work dir when training stops on diverged weights:
+#: which checkpoints were saved after they went bad (never resumed).
+DIVERGENCE_RECORD = 'diverged.json'
 #: What a published checkpoint keeps (MMDetection's default).
 PUBLISH_KEYS = ('meta', 'state_dict')
 #: Bytes read at a time when hashing.
@@ -43,9 +117,10 @@ _CHUNK = 1 << 20
 def read_checkpoint(path: str, mmap: bool = False) -> dict:
     """Read a local checkpoint file, naming the file and the problem.
 
-    Loads with ``torch.load(weights_only=True)`` and the project's
-    allow-list (:mod:`cbnet_mmdet.utils.checkpoint.safe_globals`); never
-    with ``weights_only=False``. Meant for every place that reads a
+    Loads with ``torch.load(weights_only=True)`` and MMEngine's allow-list
+    in force for this call only
+    (:func:`~cbnet_mmdet.utils.checkpoint.safe_globals.mmengine_safe_globals`);
+    never with ``weights_only=False``. Meant for every place that reads a
     checkpoint the user names (``--resume``, ``load_from``, the work dir's
     latest, inference tools): instead of torch's ``PytorchStreamReader``
     error, ``KeyError: 101`` (a text file) and the like, one error says
@@ -72,8 +147,10 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
     with open(path, 'rb') as f:
         head = f.read(2)
     try:
-        checkpoint = torch.load(path, map_location='cpu', weights_only=True,
-                                mmap=mmap and head[:2] == b'PK')
+        with mmengine_safe_globals():
+            checkpoint = torch.load(path, map_location='cpu',
+                                    weights_only=True,
+                                    mmap=mmap and head[:2] == b'PK')
     except pickle.UnpicklingError as err:
         raise refused(path, err) from None
     except (RuntimeError, EOFError, OSError, ValueError) as err:
@@ -83,6 +160,32 @@ def read_checkpoint(path: str, mmap: bool = False) -> dict:
         raise ValueError(f'{path} holds a {type(checkpoint).__name__}, not '
                          f'a checkpoint dict')
     return checkpoint
+
+
+def refused(filename: str,
+            err: pickle.UnpicklingError) -> pickle.UnpicklingError:
+    """The error for a file that weights-only loading refused: it names
+    the file and the object, and drops torch's advice to load it with
+    ``weights_only=False`` (which would let the file run code).
+
+    Args:
+        filename (str): The checkpoint.
+        err (pickle.UnpicklingError): torch's error.
+
+    Returns:
+        pickle.UnpicklingError: To raise.
+    """
+    found = re.search(r'Unsupported global: GLOBAL (\S+)', str(err))
+    what = (f'the Python object {found.group(1)}'
+            if found else 'Python objects')
+    return pickle.UnpicklingError(
+        f'checkpoint {filename} holds {what}, which torch.load\'s '
+        f'weights-only loading refuses: it reads tensors, Python '
+        f'values and the MMEngine log objects cbnet_mmdet allows '
+        f'(cbnet_mmdet/utils/checkpoint/safe_globals.py), nothing '
+        f'that could run code. A checkpoint written by tools/train.py '
+        f'holds nothing else; for a file from elsewhere, ask for one '
+        f'saved as torch.save(dict(state_dict=model.state_dict()))')
 
 
 def unwrap_state_dict(checkpoint: Dict) -> Dict[str, torch.Tensor]:
@@ -185,6 +288,53 @@ def last_checkpoint_in(work_dir: str) -> Tuple[Optional[str], str]:
                   f'dir {work_dir}')
 
 
+def _file_id(path: str) -> List[int]:
+    """Size and modification time (ns) of a file: a checkpoint written
+    again under the same name is another file."""
+    stat = os.stat(path)
+    return [stat.st_size, stat.st_mtime_ns]
+
+
+def record_divergence(work_dir: str, message: str,
+                      unsafe: Sequence[str]) -> str:
+    """Write :data:`DIVERGENCE_RECORD` into ``work_dir``: training stopped
+    with ``message`` and the checkpoints ``unsafe`` hold weights written
+    after they went bad (``CBNetNonFiniteLossHook`` calls it as it stops).
+
+    Returns:
+        str: The record's path.
+    """
+    record = osp.join(work_dir, DIVERGENCE_RECORD)
+    files = {osp.basename(p): _file_id(p) for p in unsafe if osp.isfile(p)}
+    with open(record, 'w') as f:
+        json.dump(dict(error=message, unsafe=files), f, indent=1)
+    return record
+
+
+def diverged_checkpoints(work_dir: str) -> Tuple[List[str], str]:
+    """The checkpoints of ``work_dir`` that its :data:`DIVERGENCE_RECORD`
+    names as written after the weights went bad, and still the same files
+    (one written again since, by a run resumed from a clean checkpoint, is
+    not), with the record's error ('' without a record)."""
+    record = osp.join(work_dir, DIVERGENCE_RECORD)
+    if not osp.isfile(record):
+        return [], ''
+    try:
+        with open(record) as f:
+            content = json.load(f)
+        files, error = dict(content['unsafe']), str(content['error'])
+    except (ValueError, KeyError, TypeError) as err:
+        raise ValueError(f'{record} is damaged ({err}): it says which '
+                         f'checkpoints hold diverged weights; delete it '
+                         f'only to resume from any of them') from err
+    unsafe = [
+        osp.join(work_dir, name) for name, ident in files.items()
+        if osp.isfile(osp.join(work_dir, name))
+        and _file_id(osp.join(work_dir, name)) == list(ident)
+    ]
+    return unsafe, error.split('. ')[0]
+
+
 def resume_checkpoint(work_dir: str,
                       path: Optional[str] = None) -> Tuple[Optional[str],
                                                            List[str]]:
@@ -198,41 +348,64 @@ def resume_checkpoint(work_dir: str,
     Returns:
         tuple[str | None, list[str]]: The checkpoint (None: nothing to
         resume from in the work dir, train from scratch) and notes for
-        the log (a moved work dir, a damaged latest checkpoint and the
-        fallback taken).
+        the log (a moved work dir, a damaged or diverged latest
+        checkpoint and the fallback taken).
+
+    A checkpoint the work dir's :data:`DIVERGENCE_RECORD` names (written
+    after the weights went bad, before ``CBNetNonFiniteLossHook`` stopped
+    the run) is never resumed: ``--resume`` falls back to the newest
+    clean one, saying so, and refuses when there is none.
 
     Raises:
         FileNotFoundError / ValueError / pickle.UnpicklingError: ``path``
             was given and cannot be resumed (named, with the problem and
             the newest intact checkpoint of the work dir, if any).
+        DivergedRunError: the run diverged and no checkpoint of the work
+            dir is clean.
     """
     if path is not None and '://' in path:
         return path, []  # remote: MMEngine's loader
+    diverged, error = diverged_checkpoints(work_dir)
+    bad = {osp.realpath(p) for p in diverged}
+    went_bad = (f'written after the weights went bad (the run stopped: '
+                f'{error})')
     if path is not None:
         problem = checkpoint_problem(path)
+        if not problem and osp.realpath(path) in bad:
+            problem = went_bad
         if problem:
             intact = [p for p, _ in intact_checkpoints(work_dir)
-                      if osp.realpath(p) != osp.realpath(path)]
+                      if osp.realpath(p) not in bad | {osp.realpath(path)}]
             hint = (f' (newest intact checkpoint of {work_dir}: '
                     f'{intact[0]})' if intact else '')
-            error = FileNotFoundError if not osp.isfile(path) else \
-                pickle.UnpicklingError if 'refused' in problem else ValueError
-            raise error(f'--resume {path}: {problem}{hint}')
+            kind = FileNotFoundError if not osp.isfile(path) else \
+                pickle.UnpicklingError if 'refuse' in problem else ValueError
+            raise kind(f'--resume {path}: {problem}{hint}')
         return path, []
     latest, note = last_checkpoint_in(work_dir)
     notes = [note] if note else []
     if latest is not None:
         problem = checkpoint_problem(latest)
+        if not problem and osp.realpath(latest) in bad:
+            problem = f'{latest} was {went_bad}'
         if not problem:
             return latest, notes
         notes.append(f'latest checkpoint unusable: {problem}')
-    intact = intact_checkpoints(work_dir)
+    intact = [(p, it) for p, it in intact_checkpoints(work_dir)
+              if osp.realpath(p) not in bad]
     if intact:
-        if latest is not None or note:
-            notes.append(f'falling back to the newest intact checkpoint of '
-                         f'the work dir: {intact[0][0]} (iteration '
+        if latest is not None or note or bad:
+            which = 'last clean' if bad else 'newest intact'
+            notes.append(f'falling back to the {which} checkpoint of the '
+                         f'work dir: {intact[0][0]} (iteration '
                          f'{intact[0][1]})')
         return intact[0][0], notes
+    if bad:
+        raise DivergedRunError(
+            f'cannot resume {work_dir}: the run stopped ({error}) and its '
+            f'checkpoints {", ".join(sorted(diverged))} were written after '
+            f'the weights went bad; no checkpoint of it is clean: start '
+            f'again without --resume (lower the lr or check the data)')
     if latest is not None or note:
         notes.append(f'no intact checkpoint in {work_dir}: training from '
                      f'scratch')
@@ -254,8 +427,9 @@ def load_checkpoint_file(path: str) -> dict:
             :func:`read_checkpoint`) or holds no ``state_dict`` dict.
     """
     if '://' in path:
-        checkpoint = CheckpointLoader.load_checkpoint(path,
-                                                      map_location='cpu')
+        with mmengine_safe_globals():
+            checkpoint = CheckpointLoader.load_checkpoint(
+                path, map_location='cpu')
     else:
         checkpoint = read_checkpoint(path)
     if not isinstance(checkpoint, dict) or not isinstance(

@@ -4,22 +4,17 @@ MMEngine loads weights non-strictly: tensors with the wrong shape or name
 are skipped with a printed warning, and the model then predicts with
 random weights where the checkpoint did not fit (the MiT-B0 demo
 checkpoint in the MiT-B5 config returns boxes at score 1.0; a CBNet-DD
-checkpoint in the plain config loads nothing at all). At inference that is
-never what the user wants, so:
+checkpoint in the plain config loads nothing at all). MMDetection's
+``init_detector`` and ``DetInferencer`` do exactly that, with our configs
+too: the models do not check where their weights come from. Where the
+project loads weights to evaluate them, they are checked:
 
 * :func:`check_checkpoint_fits` compares a whole checkpoint with a model
   and raises :class:`CheckpointMismatchError` saying what does not fit and
-  what to do (``tools/test.py`` and the tools built on MMEngine's runner,
-  through ``CBNetCheckpointReportHook(require_fit=True)``);
-* :class:`StrictCheckpointFitMixin` makes one of our modules (the MiT
-  backbone, the NAS-FPN neck, the Cascade RPN head) refuse, when it is
-  loaded as part of a detector checkpoint, weights that do not fit it:
-  this covers MMDetection's own ``init_detector`` and ``DetInferencer``
-  with our configs, which load through ``torch.nn.Module`` directly.
-
-A checkpoint that fits the backbone, neck and RPN head but not the RoI
-heads (another number of classes) still loads with MMEngine's warning
-through MMDetection's API, so that fine-tuning with ``load_from`` works.
+  what to do: ``tools/test.py`` and the tools built on MMEngine's runner,
+  through ``CBNetCheckpointReportHook(require_fit=True)``
+  (:func:`require_checkpoint_fit`), and the project's inference tools
+  through :func:`init_checked_detector`.
 """
 from typing import Dict, List, Optional
 
@@ -146,40 +141,33 @@ def check_checkpoint_fits(model_state: Dict,
     return report
 
 
-class StrictCheckpointFitMixin:
-    """Refuse weights that do not fit this module, in a detector checkpoint.
+def init_checked_detector(config, checkpoint: str, device: str = 'cpu'):
+    """MMDetection's ``init_detector``, refusing a checkpoint that does not
+    fill the model (the project's inference tools).
 
-    For ``torch.nn.Module`` subclasses (put the mixin first). When the
-    module is loaded as part of a bigger model (a non-empty ``prefix``:
-    ``backbone.``, ``neck.`` ...), every tensor of its own state must be in
-    the loaded ``state_dict`` with the same shape, else
-    :class:`CheckpointMismatchError` names the module, the tensors and what
-    to do. Loading the module on its own (``prefix == ''``: the backbone's
-    ``init_cfg=Pretrained`` ImageNet weights, which legitimately lack the
-    CSPE tables) is not checked here.
+    Args:
+        config (str | Config): The detector's config.
+        checkpoint (str): Local checkpoint file (read weights-only, with
+            MMEngine's allow-list for this call only).
+        device (str): Where the model runs.
+
+    Returns:
+        nn.Module: The model, in eval mode, with the checkpoint loaded.
+
+    Raises:
+        CheckpointMismatchError: a model tensor is missing from the
+            checkpoint or has another shape there.
     """
+    from mmdet.apis import init_detector
 
-    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
-                              strict, missing_keys, unexpected_keys,
-                              error_msgs):
-        if prefix:
-            own = self.state_dict(prefix=prefix)
-            given = {k: v for k, v in state_dict.items()
-                     if k.startswith(prefix)}
-            report = compare_state_dicts(own, given)
-            if report['missing'] or report['mismatched']:
-                # the keys this module sees are only its own: say both
-                # hints when it sees none of them
-                message = misfit_message(
-                    report, 'being loaded',
-                    f'`{prefix[:-1]}` ({type(self).__name__})')
-                if not given:
-                    message += (f'\nThe checkpoint has no `{prefix}*` '
-                                f'weights at all; if {EXTRACT_HINT}.')
-                raise CheckpointMismatchError(message)
-        super()._load_from_state_dict(state_dict, prefix, local_metadata,
-                                      strict, missing_keys, unexpected_keys,
-                                      error_msgs)
+    from .files import read_checkpoint, unwrap_state_dict
+    from .safe_globals import mmengine_safe_globals
+    state = unwrap_state_dict(read_checkpoint(checkpoint, mmap=True))
+    with mmengine_safe_globals():
+        model = init_detector(config, checkpoint, device=device)
+    check_checkpoint_fits(model.state_dict(), state, checkpoint,
+                          type(model).__name__)
+    return model
 
 
 def require_checkpoint_fit(cfg) -> None:

@@ -1,7 +1,9 @@
-"""Let ``torch.load(weights_only=True)`` read MMEngine checkpoints.
+"""Let ``torch.load(weights_only=True)`` read MMEngine checkpoints, inside
+a context only.
 
 torch >= 2.6 loads with ``weights_only=True`` by default, and MMEngine 0.10.7
-loads checkpoints with the default, so ``resume`` fails out of the box.
+loads checkpoints with the default, so ``resume`` of a checkpoint MMEngine
+wrote fails out of the box.
 Besides tensors, MMEngine writes into ``message_hub``/``meta``:
 
 * ``mmengine.logging.history_buffer.HistoryBuffer`` (the logged scalars),
@@ -21,6 +23,14 @@ attribute, and so run code): a stand-in registered under its name resolves
 only ``HistoryBuffer``'s statistics methods and refuses everything else. We
 never turn ``weights_only`` off, which would let a downloaded checkpoint run
 code.
+
+Nothing here changes torch for the whole process: importing
+``cbnet_mmdet`` adds no safe global. :func:`mmengine_safe_globals` is a
+``torch.serialization.safe_globals`` context, entered by ``CBNetRunner``
+(``load_from``, ``--resume``) and :func:`~cbnet_mmdet.utils.checkpoint.
+files.read_checkpoint` around their own loading only; a script of yours
+can enter it around ``init_detector`` / ``DetInferencer`` for a checkpoint
+written without ``CBNetWeightsOnlyCheckpointHook``.
 """
 import pickle
 
@@ -83,8 +93,8 @@ def allowed_global_names() -> set:
     return names
 
 
-def allow_mmengine_checkpoints() -> list:
-    """Register the allow-list with ``torch.serialization``; returns it."""
-    allowed = mmengine_checkpoint_globals()
-    torch.serialization.add_safe_globals(allowed)
-    return allowed
+def mmengine_safe_globals() -> torch.serialization.safe_globals:
+    """A context inside which weights-only loading reads MMEngine
+    checkpoints (the allow-list above); torch's list is as before after
+    it."""
+    return torch.serialization.safe_globals(mmengine_checkpoint_globals())

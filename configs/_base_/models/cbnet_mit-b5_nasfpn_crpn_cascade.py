@@ -21,8 +21,8 @@ model = dict(
     backbone=dict(
         type='CBNetMiT',
         arch='b5',
-        # paper II.A: Mish (CBNetMish: same function, faster on CPU;
-        # type='Mish' is torch.nn.Mish)
+        # paper II.A: Mish (CBNetMish: torch.nn.Mish's function, faster
+        # on CPU)
         act_cfg=dict(type='CBNetMish'),
         pos_encoding='cspe',  # paper formula (1)
         drop_path_rate=0.1,  # SegFormer's value

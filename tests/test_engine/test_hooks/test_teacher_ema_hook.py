@@ -7,9 +7,9 @@ import torch
 import torch.nn as nn
 from mmdet.registry import HOOKS
 from mmengine.model import BaseModel
-from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
+from cbnet_mmdet.engine.runner import CBNetRunner
 
 
 class Net(nn.Module):
@@ -167,7 +167,8 @@ def test_eval_with_is_the_models_and_bad_config():
 
 def run(work_dir, max_iters, resume=False, load_from=None):
     torch.manual_seed(0)  # the same initial model in every run
-    runner = Runner(
+    # the project's runner: it reads MMEngine's checkpoints on this torch
+    runner = CBNetRunner(
         model=ToyDistiller(),
         work_dir=str(work_dir),
         train_dataloader=dict(

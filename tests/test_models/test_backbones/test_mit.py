@@ -90,7 +90,7 @@ def test_activation_and_drop_path():
     model = build(drop_path_rate=0.3)
     ffn_acts = [m.ffn.layers[2] for s in model.layers for m in s[1]]
     assert all(isinstance(a, CBNetMish) for a in ffn_acts)
-    torch_mish = build(act_cfg=dict(type='Mish'))
+    torch_mish = build(act_cfg=dict(type=nn.Mish))
     assert isinstance(torch_mish.layers[0][1][0].ffn.layers[2], nn.Mish)
     gelu = build(act_cfg=dict(type='GELU'))
     assert isinstance(gelu.layers[0][1][0].ffn.layers[2], nn.GELU)

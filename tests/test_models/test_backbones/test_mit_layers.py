@@ -88,7 +88,7 @@ def test_token_mix_ffn_matches_mmdet_mix_ffn(hw):
     from cbnet_mmdet.models.backbones.mit_layers import TokenMixFFN
     torch.manual_seed(0)
     kwargs = dict(embed_dims=8, feedforward_channels=32,
-                  act_cfg=dict(type='Mish'), use_conv=True)
+                  act_cfg=dict(type=nn.Mish), use_conv=True)
     ffn, ref = TokenMixFFN(**kwargs), MixFFN(**kwargs)
     ref.load_state_dict(ffn.state_dict())
     assert list(ffn.state_dict()) == list(ref.state_dict())

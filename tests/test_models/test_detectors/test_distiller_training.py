@@ -6,6 +6,7 @@ import torch
 from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
+from cbnet_mmdet.utils.checkpoint.files import read_checkpoint
 
 
 def train_pipeline():
@@ -68,6 +69,6 @@ def test_short_training_logs_loss_distill(paired_root, make_distiller_cfg,
     assert not torch.equal(teacher, student0[name])
     assert not torch.equal(teacher, student)
     # the checkpoint carries the teacher
-    ckpt = torch.load(osp.join(str(tmp_path), 'iter_4.pth'))
+    ckpt = read_checkpoint(osp.join(str(tmp_path), 'iter_4.pth'))
     torch.testing.assert_close(ckpt['state_dict']['teacher.' + name],
                                teacher)

@@ -68,7 +68,14 @@ def test_empty():
 
 
 def test_built_from_act_cfg():
-    layer = build_activation_layer(dict(type='CBNetMish'))
+    from mmengine.registry import MODELS as ROOT_MODELS
+    from mmengine.registry import DefaultScope
+
+    # in MMDetection's registry (a runner or init_detector sets its scope),
+    # not in MMEngine's root registry (issue 43)
+    assert 'CBNetMish' not in ROOT_MODELS.module_dict
+    with DefaultScope.overwrite_default_scope('mmdet'):
+        layer = build_activation_layer(dict(type='CBNetMish'))
     assert isinstance(layer, CBNetMish)
     x = torch.randn(3, 4)
     torch.testing.assert_close(layer(x), F.mish(x))

@@ -1,4 +1,5 @@
-"""MMEngine checkpoints load with torch's default ``weights_only=True``."""
+"""MMEngine checkpoints load with torch's default ``weights_only=True``
+inside :func:`mmengine_safe_globals`, and only there."""
 import os
 import pickle
 
@@ -10,9 +11,11 @@ from mmengine.runner import Runner
 from torch import nn
 from torch.utils.data import Dataset
 
-import cbnet_mmdet  # noqa: F401  (registers the allow-list)
+import cbnet_mmdet  # noqa: F401
+from cbnet_mmdet.engine.runner import CBNetRunner
 from cbnet_mmdet.utils.checkpoint.safe_globals import (allowed_global_names,
-                                                       history_buffer_getattr)
+                                                       history_buffer_getattr,
+                                                       mmengine_safe_globals)
 
 
 class _ToyModel(BaseModel):
@@ -35,8 +38,8 @@ class _ToyData(Dataset):
         return dict(inputs=torch.full((2, ), float(i)))
 
 
-def _runner(work_dir, max_epochs, resume=False):
-    return Runner(
+def _runner(work_dir, max_epochs, resume=False, runner=Runner):
+    return runner(
         model=_ToyModel(),
         work_dir=str(work_dir),
         train_dataloader=dict(
@@ -85,18 +88,24 @@ def test_allow_list_is_exactly_what_mmengine_writes(checkpoint):
     assert _non_dtype(found) == _non_dtype(allowed)
 
 
-def test_default_torch_load_reads_message_hub(checkpoint):
+def test_default_torch_load_reads_message_hub_in_the_context(checkpoint):
     _, path = checkpoint
-    ckpt = torch.load(path)  # weights_only=True is torch's default
+    before = set(map(str, torch.serialization.get_safe_globals()))
+    with pytest.raises(pickle.UnpicklingError, match='HistoryBuffer'):
+        torch.load(path)  # MMEngine 0.10.7's own, on this torch
+    with mmengine_safe_globals():
+        ckpt = torch.load(path)  # weights_only=True is torch's default
+    assert set(map(str, torch.serialization.get_safe_globals())) == before
     buf = ckpt['message_hub']['log_scalars']['train/loss']
     assert isinstance(buf, HistoryBuffer)
     assert buf.min() <= buf.mean() <= buf.max()
     assert ckpt['meta']['epoch'] == 2
 
 
-def test_resume_continues_from_checkpoint(checkpoint):
+def test_cbnet_runner_resumes_from_checkpoint(checkpoint):
     work_dir, _ = checkpoint
-    runner = _runner(work_dir, max_epochs=3, resume=True)
+    runner = _runner(work_dir, max_epochs=3, resume=True,
+                     runner=CBNetRunner)
     runner.train()
     assert runner.iter == 12  # 2 epochs from the checkpoint + 1 more
     assert runner.epoch == 3
@@ -125,7 +134,7 @@ class _SystemPayload:
 def test_malicious_checkpoints_still_refused(tmp_path, payload):
     path = tmp_path / 'evil.pth'
     torch.save({'state_dict': {}, 'x': payload}, path)
-    with pytest.raises(pickle.UnpicklingError):
+    with mmengine_safe_globals(), pytest.raises(pickle.UnpicklingError):
         torch.load(path)
 
 

@@ -1,24 +1,19 @@
-"""CBNetNonFiniteLossHook and CBNetRNGStateHook on a mock runner and in a
-real (toy) training loop."""
-import io
+"""CBNetNonFiniteLossHook on a mock runner and in a real (toy) training
+loop; its state across a resume (the runner's side: test_cbnet_runner.py)."""
+import json
 import math
-import random
 import re
 from unittest.mock import MagicMock
 
-import numpy as np
 import pytest
 import torch
 import torch.nn as nn
 from mmdet.registry import HOOKS
 from mmdet.structures import DetDataSample
-from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401
-from cbnet_mmdet.engine.hooks import (CBNetNonFiniteLossHook,
-                                      CBNetRNGStateHook)
-from cbnet_mmdet.engine.hooks.rng_state_hook import (get_rng_state,
-                                                     set_rng_state)
+from cbnet_mmdet.engine.hooks import CBNetNonFiniteLossHook
+from helper_hooks import toy_runner
 
 
 def mock_runner(it=16, epoch=1):
@@ -34,12 +29,10 @@ def batch(*paths):
     ])
 
 
-def test_registered_names_build_these_classes():
-    for name, cls in (('CBNetNonFiniteLossHook', CBNetNonFiniteLossHook),
-                      ('CBNetRNGStateHook', CBNetRNGStateHook)):
-        assert HOOKS.get(name) is cls
-        # scoped: found whatever default scope an earlier test left current
-        assert type(HOOKS.build(dict(type=f'mmdet.{name}'))) is cls
+def test_registered_name_builds_this_class():
+    assert HOOKS.get('CBNetNonFiniteLossHook') is CBNetNonFiniteLossHook
+    # scoped: found whatever default scope an earlier test left current
+    assert type(HOOKS.build(dict(type='mmdet.CBNetNonFiniteLossHook'))) is CBNetNonFiniteLossHook
 
 
 @pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])
@@ -97,73 +90,6 @@ def test_training_stops_at_nan_without_saving_it(tmp_path):
     assert saved == ['iter_1.pth', 'iter_2.pth']
 
 
-def test_rng_state_round_trip_and_weights_only_load():
-    random.seed(1), np.random.seed(1), torch.manual_seed(1)
-    state = get_rng_state()
-    expected = (random.random(), np.random.rand(), torch.rand(1))
-    buf = io.BytesIO()
-    torch.save(dict(rng_state=[state]), buf)
-    buf.seek(0)
-    loaded = torch.load(buf)  # weights_only=True by default
-    random.seed(2), np.random.seed(2), torch.manual_seed(2)
-    set_rng_state(loaded['rng_state'][0])
-    assert (random.random(), np.random.rand()) == expected[:2]
-    assert torch.equal(torch.rand(1), expected[2])
-
-
-def test_rng_hook_restores_only_on_resume():
-    hook = CBNetRNGStateHook()
-    checkpoint = {}
-    torch.manual_seed(5)
-    hook.before_save_checkpoint(mock_runner(), checkpoint)
-    after_save = torch.rand(3)
-    # load_from (iteration 0): nothing restored
-    hook.after_load_checkpoint(mock_runner(), checkpoint)
-    torch.manual_seed(6)
-    hook.before_train(mock_runner(it=0))
-    assert not torch.equal(torch.rand(3), after_save)
-    # resume: the generators continue where the checkpoint left them
-    hook.after_load_checkpoint(mock_runner(), checkpoint)
-    torch.manual_seed(6)
-    runner = mock_runner(it=8)
-    hook.before_train(runner)
-    assert torch.equal(torch.rand(3), after_save)
-    runner.logger.info.assert_called_once()
-
-
-@pytest.mark.parametrize('saved', [None, 'two_ranks'])
-def test_rng_hook_warns_when_it_cannot_restore(saved):
-    hook = CBNetRNGStateHook()
-    ckpt = {} if saved is None else dict(
-        rng_state=[get_rng_state(), get_rng_state()])
-    hook.after_load_checkpoint(mock_runner(), ckpt)
-    runner = mock_runner(it=4)
-    hook.before_train(runner)
-    warning = runner.logger.warning.call_args[0][0]
-    assert ('no RNG state' if saved is None else '2 rank(s)') in warning
-
-
-def toy_runner(work_dir, hook, max_iters=6, **loss_scale):
-    """MMEngine Runner of helper_hooks.CBNetTestToyModel with a checkpoint
-    every iteration; ``loss_scale``: ``it3=1e4`` multiplies the 3rd loss."""
-    from helper_hooks import CBNetTestToyModel
-    scale = {k[2:]: v for k, v in loss_scale.items()}
-    return Runner(
-        model=CBNetTestToyModel(loss_scale=scale),
-        work_dir=str(work_dir),
-        train_dataloader=dict(
-            dataset=[dict(inputs=torch.ones(2))] * 8,
-            sampler=dict(type='DefaultSampler', shuffle=False),
-            collate_fn=dict(type='pseudo_collate'),
-            batch_size=1),
-        optim_wrapper=dict(optimizer=dict(type='SGD', lr=0.01)),
-        train_cfg=dict(by_epoch=False, max_iters=max_iters),
-        default_hooks=dict(checkpoint=dict(
-            type='CheckpointHook', interval=1, by_epoch=False)),
-        custom_hooks=[hook],
-        default_scope='mmdet')
-
-
 def test_finite_blowup_stops_before_its_checkpoint(tmp_path):
     runner = toy_runner(
         tmp_path, dict(type='CBNetNonFiniteLossHook', min_history=2),
@@ -177,11 +103,17 @@ def test_finite_blowup_stops_before_its_checkpoint(tmp_path):
                     r'iterations', msg), msg
     assert (f'. The weights of this step were not saved; the last clean '
             f'checkpoint is {tmp_path}/iter_1.pth (iteration 1): resume '
-            f'with --resume {tmp_path}/iter_1.pth; do NOT resume from '
-            f'{tmp_path}/iter_2.pth (written after the weights went bad; a '
-            f'plain --resume would). Lower the lr or check the data.') in msg
+            f'with --resume {tmp_path}/iter_1.pth; {tmp_path}/iter_2.pth '
+            f'were written after the weights went bad: --resume never '
+            f'takes them (diverged.json in the work dir says so). Lower '
+            f'the lr or check the data.') in msg
     saved = sorted(p.name for p in tmp_path.glob('iter_*.pth'))
     assert saved == ['iter_1.pth', 'iter_2.pth']
+    record = json.loads((tmp_path / 'diverged.json').read_text())
+    assert record['error'] == msg
+    stat = (tmp_path / 'iter_2.pth').stat()
+    assert record['unsafe'] == {'iter_2.pth': [stat.st_size,
+                                               stat.st_mtime_ns]}
 
 
 def test_nan_after_a_blowup_names_the_really_clean_checkpoint(tmp_path):
@@ -196,9 +128,12 @@ def test_nan_after_a_blowup_names_the_really_clean_checkpoint(tmp_path):
     assert msg.startswith('non-finite loss at iteration 5')
     assert (f'the blow-up began at iteration 3; the last clean checkpoint '
             f'is {tmp_path}/iter_1.pth (iteration 1)') in msg
-    assert (f'do NOT resume from {tmp_path}/iter_4.pth, '
-            f'{tmp_path}/iter_3.pth, {tmp_path}/iter_2.pth (written after '
-            f'the weights went bad; a plain --resume would)') in msg
+    assert (f'; {tmp_path}/iter_4.pth, {tmp_path}/iter_3.pth, '
+            f'{tmp_path}/iter_2.pth were written after the weights went '
+            f'bad: --resume never takes them') in msg
+    record = json.loads((tmp_path / 'diverged.json').read_text())
+    assert sorted(record['unsafe']) == ['iter_2.pth', 'iter_3.pth',
+                                        'iter_4.pth']
 
 
 def test_grad_norm_blowup_against_running_median():
@@ -246,3 +181,50 @@ def test_parameter_norm_blowup():
 def test_divergence_settings_checked(kwargs):
     with pytest.raises(ValueError, match=list(kwargs)[0]):
         CBNetNonFiniteLossHook(**kwargs)
+
+
+def test_state_is_saved_and_restored_only_on_resume():
+    """The histories, the reference norm and the counters go into every
+    checkpoint and come back on resume, not after ``load_from``."""
+    hook = CBNetNonFiniteLossHook(param_interval=1, window=3)
+    runner = mock_runner(it=0)
+    hook.before_train(runner)
+    for it, loss in enumerate([4.0, 2.0, 3.0, 5.0]):
+        runner.iter = it
+        hook.after_train_iter(runner, it, None, dict(loss=torch.tensor(loss)))
+    checkpoint = {}
+    hook.before_save_checkpoint(runner, checkpoint)
+    state = checkpoint['non_finite_check']
+    # the window keeps the last 3 (iteration, loss) pairs, 1-based
+    assert state['history'] == {'loss': [[2, 2.0], [3, 3.0], [4, 5.0]]}
+    assert state['last_params_ok'] == 4
+    norm = float(torch.cat([p.detach().flatten() for p in
+                            runner.model.parameters()]).double().norm())
+    assert state['first_param_norm'] == pytest.approx(norm, rel=1e-6)
+    # load_from (iteration 0): a new history
+    fresh = CBNetNonFiniteLossHook(param_interval=1, window=3)
+    fresh.after_load_checkpoint(runner, checkpoint)
+    fresh.before_train(mock_runner(it=0))
+    assert fresh.history == {} and fresh.last_params_ok == 0
+    # resume at iteration 4: the same state as the hook that saved it
+    resumed = CBNetNonFiniteLossHook(param_interval=1, window=3)
+    resumed.after_load_checkpoint(runner, checkpoint)
+    runner.iter = 4
+    resumed.before_train(runner)
+    assert resumed.state_dict() == state
+    assert resumed.history['loss'].maxlen == 3
+    # judged against the losses before the interruption: median 3
+    with pytest.raises(FloatingPointError,
+                       match=r'loss blew up at iteration 5 .*: 301 is more '
+                       r'than 100 x the median 3 of the last 3 iterations'):
+        resumed.after_train_iter(runner, 0, None,
+                                 dict(loss=torch.tensor(301.)))
+
+
+def test_resume_from_a_checkpoint_without_state_warns():
+    hook = CBNetNonFiniteLossHook()
+    hook.after_load_checkpoint(mock_runner(), {})
+    runner = mock_runner(it=8)
+    hook.before_train(runner)
+    assert 'holds no state of this check' in \
+        runner.logger.warning.call_args[0][0]
