@@ -20,6 +20,7 @@ from mmengine.registry import RUNNERS
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.engine.runner import CBNetRunner
+from cbnet_mmdet.utils.pretrained import require_pretrained
 from cbnet_mmdet.utils.cpu_distributed import (init_gloo_process_group,
                                                use_gloo_on_cpu)
 from mmdet.utils import setup_cache_size_limit_of_dynamo
@@ -142,6 +143,9 @@ def main(argv=None):
     args = parse_args(argv)
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
+    # a missing pretrained trunk: an error naming the command that fetches
+    # it, before anything is built
+    require_pretrained(cfg)
     init_gloo_process_group(cfg)
     if 'runner_type' not in cfg:  # checked checkpoint loading
         runner = CBNetRunner.from_cfg(cfg)
