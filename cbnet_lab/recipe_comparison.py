@@ -762,6 +762,17 @@ def check_data(reference: str, data_root: str,
             '`python tools/dataset_converters/cityscapes.py DIR`)')
 
 
+def check_pretrained(recipes: Sequence[Tuple[str, str]],
+                     sources: Dict[str, Optional[str]]) -> None:
+    """Every pretrained file the trained recipes load, before the first
+    run (not hours later): a missing one is an error naming the command
+    that fetches it (:func:`cbnet_mmdet.utils.pretrained
+    .require_pretrained`). Test-time variants load no trunk."""
+    for name, config in recipes:
+        if sources[name] is None:
+            require_pretrained(Config.fromfile(config))
+
+
 def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget: Budget, data_root: str, betas: Sequence[float],
             out_dir: str, cfg_options: Optional[dict] = None,
@@ -812,10 +823,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     sources = weights_sources(recipes)
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)
-        # every pretrained file before the first run, not hours later
-        for name, config in recipes:
-            if sources[name] is None:
-                require_pretrained(Config.fromfile(config))
+        check_pretrained(recipes, sources)
     os.makedirs(out_dir, exist_ok=True)
     # seed-major: a comparison cut short still has every recipe at the
     # seeds it finished

@@ -211,8 +211,9 @@ def main(argv=None) -> dict:
                         betas, work_dir, args.cfg_options,
                         set_name=args.set, train=not args.report_only,
                         wait=not args.no_wait)
-    print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
-          'compare.png')
+    if 'summary' in record:  # else nothing had finished (--no-wait)
+        print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
+              'compare.png')
     return record
 
 
