@@ -9,6 +9,9 @@ from typing import Tuple
 METRICS = {
     'box AP': ('coco/bbox_mAP', 100.0),
     'box AP50': ('coco/bbox_mAP_50', 100.0),
+    'box AP_s': ('coco/bbox_mAP_s', 100.0),
+    'box AP_m': ('coco/bbox_mAP_m', 100.0),
+    'box AP_l': ('coco/bbox_mAP_l', 100.0),
     'mask AP': ('coco/segm_mAP', 100.0),
     'mask AP50': ('coco/segm_mAP_50', 100.0),
     'mIoU': ('cityscapes/mIoU', 100.0),

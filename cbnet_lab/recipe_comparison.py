@@ -39,6 +39,8 @@ import numpy as np
 from mmengine.config import Config
 from mmengine.device import get_device
 
+from cbnet_tools.pretrained import require_pretrained
+
 from .ap_drop import ap_drop, test_condition
 from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
                            resume_file)
@@ -170,6 +172,36 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('dehazer + YOLOX-Tiny', '../projects/peer_dehaze/configs/realfog/'
          'yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
     ],
+    # issue 42, real masks: the COCO street subset (tools/dataset_
+    # converters/coco_street.py) on an ImageNet MobileNetV2 (tools/model_
+    # converters/fetch_pretrained.py), the four recipes at equal widths
+    'coco_street': [
+        ('Cascade Mask R-CNN', 'pretrained/cascade-mask-rcnn_mobilenet-v2_'
+         'fpn_1xb2-ft_coco-street.py'),
+        ('CBNet', 'pretrained/cbnet_mobilenet-v2_nasfpn-crpn_1xb2-ft_'
+         'coco-street.py'),
+        ('CBNet revised', 'pretrained/cbnet-revised_mobilenet-v2_nasfpn-'
+         'crpn_1xb2-ft_coco-street.py'),
+        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised_mobilenet-v2_'
+         'nasfpn-rpn_1xb2-ft_coco-street.py'),
+    ],
+    # issue 42, real fog on the pretrained trunk (DAWN fog + haze at 640
+    # px): the same recipes box-only, YOLOX-Tiny (from scratch: no weights
+    # for its trunk here) and dehaze-then-detect (the dark channel prior)
+    # in front of the stock cascade; the first two rows are the question
+    'realfog_pretrained': [
+        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
+         'ft_dawn-fog.py'),
+        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
+         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
+        ('CBNet', 'pretrained/cbnet-box_mobilenet-v2_nasfpn-crpn_1xb2-ft_'
+         'dawn-fog.py'),
+        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised-box_mobilenet-'
+         'v2_nasfpn-rpn_1xb2-ft_dawn-fog.py'),
+        ('DCP + Cascade R-CNN', '../projects/peer_dehaze/configs/pretrained/'
+         'cascade-rcnn_mobilenet-v2_fpn_dcp_1xb2-ft_dawn-fog.py'),
+        ('YOLOX-Tiny (scratch)', 'pretrained/yolox_tiny_1xb2_dawn-fog.py'),
+    ],
     # proposal recall of the three RPN heads
     'rpn': [
         ('CBNet CRPN',
@@ -186,6 +218,13 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
 DETECTION_COLUMNS = metric_columns('box AP', 'box AP50', 'mask AP',
                                    'mask AP50', 'mIoU')
 PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
+#: Sets that report other columns than :data:`DETECTION_COLUMNS`: real fog
+#: on a pretrained trunk adds COCO's AP per object size (DAWN's vehicles
+#: range from a few pixels to half the photo).
+SET_COLUMNS = {
+    'realfog_pretrained': metric_columns('box AP', 'box AP50', 'box AP_s',
+                                         'box AP_m', 'box AP_l'),
+}
 
 
 @dataclass
@@ -214,6 +253,17 @@ class Preset:
                 f'{self.batch_size} images, {size}')
 
 
+#: The real-fog budget on the pretrained trunk: 900 iterations of 2 photos
+#: are 12 epochs of DAWN's 152 training photos (fog + haze with at least
+#: one object), the schedule of issue 42's one-seed probe (MMDet's
+#: Cascade R-CNN on this trunk: 16.2 box AP / 30.1 AP50 on the 65 val
+#: photos in ~27 min of one CPU thread), so that the stock row can be
+#: checked against it; the CBNet rows take about twice as long.
+REALFOG_PRETRAINED_ITERS = 900
+#: The real-mask budget: the same 12 epochs of the 71 training photos
+#: with street objects, 430 iterations of 2 photos.
+COCO_STREET_ITERS = 430
+
 #: ``demo``: the older tables of docs/accuracy.md (128x256, 120 iterations
 #: of 4 images: every recipe at 1-5 AP). ``bench``: the candidate benchmark
 #: of issue 23 (docs/accuracy.md "The benchmark"): 600 iterations of 4
@@ -227,7 +277,19 @@ PRESETS: Dict[str, Preset] = {
     'bench': Preset('data/cityscapes_like_bench', iters=600,
                     batch_size=4, warmup_iters=30,
                     img_scale=(512, 256)),
+    # issue 42, fine-tuning an ImageNet trunk on real photographs, every
+    # photo at most 640x480 (COCO's as they are, DAWN's 1280-wide ones
+    # halved), batches of 2 (the configs' lr is set for them)
+    'realfog_pretrained': Preset(
+        'data/dawn_fog', iters=REALFOG_PRETRAINED_ITERS, batch_size=2,
+        warmup_iters=50, img_scale=(640, 480)),
+    'coco_street': Preset(
+        'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
+        warmup_iters=50, img_scale=(640, 480)),
 }
+#: The preset a set runs with when ``--preset`` is not given.
+SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
+               'coco_street': 'coco_street'}
 
 
 def resolve_recipes(set_name: Optional[str] = None,
@@ -461,6 +523,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'{seed}, but {checkpoint} does not exist')
         train_time, extra = None, dict(weights_of=weights_of)
     else:
+        require_pretrained(cfg)
         resumed = checkpoint_iter(cfg.load_from) \
             if budget.iters > 0 and cfg.resume else None
         runner = Runner.from_cfg(cfg)
@@ -577,7 +640,9 @@ def reference_condition(recipes: Sequence[Tuple[str, str]]) -> str:
     return next(iter(names.values()))
 
 
-def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
+def pick_columns(results: Sequence[dict],
+                 candidates: Optional[Sequence[tuple]] = None
+                 ) -> Tuple[Tuple[str, str, float]]:
     """The columns whose metric some run reports (detection or proposal).
 
     A recipe that lacks a column's metric (a box-only detector's mask AP)
@@ -585,6 +650,10 @@ def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
 
     Args:
         results (Sequence[dict]): Outputs of :func:`run_recipe`.
+        candidates (Sequence[tuple], optional): Column lists to try in
+            order (default: :data:`DETECTION_COLUMNS`, then
+            :data:`PROPOSAL_COLUMNS`); a set's own (:data:`SET_COLUMNS`)
+            goes first.
 
     Returns:
         tuple: ``(name, key, scale)`` triples.
@@ -592,7 +661,9 @@ def pick_columns(results: Sequence[dict]) -> Tuple[Tuple[str, str, float]]:
     # the reference condition is the first of each run
     keys = set.union(*(set(next(iter(r['metrics'].values())))
                        for r in results))
-    for columns in (DETECTION_COLUMNS, PROPOSAL_COLUMNS):
+    if candidates is None:
+        candidates = (DETECTION_COLUMNS, PROPOSAL_COLUMNS)
+    for columns in candidates:
         chosen = tuple(c for c in columns if c[1] in keys)
         if chosen:
             return chosen
@@ -607,7 +678,8 @@ def mean_std(values: Sequence[float]) -> Dict[str, float]:
 
 
 def summarize(results: Sequence[dict], betas: Sequence[float],
-              reference: str = 'clear') -> dict:
+              reference: str = 'clear',
+              columns: Optional[Sequence[tuple]] = None) -> dict:
     """Mean +- std over seeds per recipe, condition and column.
 
     A metric below 0 (MMDet's -1: nothing to evaluate) counts as missing.
@@ -618,6 +690,9 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
         betas (Sequence[float]): The tested fog densities.
         reference (str): The first condition (clear, or real data's
             ``test_condition``), which the drops are taken from.
+        columns (Sequence[tuple], optional): ``(name, key, scale)`` to
+            report before the default ones (a set's
+            :data:`SET_COLUMNS`).
 
     Returns:
         dict: ``columns`` (names), ``recipes`` (in order of first
@@ -625,7 +700,9 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
         plus ``'<column> drop'`` entries for the foggy conditions and
         ``train time (s)``.
     """
-    columns = pick_columns(results)
+    columns = pick_columns(
+        results, None if columns is None else
+        (tuple(columns), DETECTION_COLUMNS, PROPOSAL_COLUMNS))
     conditions = condition_names(betas, reference)
     recipes: Dict[str, List[dict]] = {}
     for r in results:
@@ -685,12 +762,23 @@ def check_data(reference: str, data_root: str,
             '`python tools/dataset_converters/cityscapes.py DIR`)')
 
 
+def check_pretrained(recipes: Sequence[Tuple[str, str]],
+                     sources: Dict[str, Optional[str]]) -> None:
+    """Every pretrained file the trained recipes load, before the first
+    run (not hours later): a missing one is an error naming the command
+    that fetches it (:func:`cbnet_tools.pretrained
+    .require_pretrained`). Test-time variants load no trunk."""
+    for name, config in recipes:
+        if sources[name] is None:
+            require_pretrained(Config.fromfile(config))
+
+
 def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget: Budget, data_root: str, betas: Sequence[float],
             out_dir: str, cfg_options: Optional[dict] = None,
             log: Callable[[str], None] = print,
             set_name: Optional[str] = None, wait_s: float = 30.0,
-            train: bool = True) -> dict:
+            train: bool = True, wait: bool = True) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -717,6 +805,11 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             out are listed (``missing`` in the record, a line under the
             tables) and the record names no machine (``machine`` None:
             the runs say nothing of where they were trained).
+        wait (bool): False leaves the runs that other processes are
+            training out of this record (``in_progress``, a line under
+            the tables) instead of waiting for them, so that a process
+            goes on to its next comparison at once; a later run of the
+            comparison (or ``--report-only``) tabulates them all.
 
     Several processes may run the same comparison (same ``out_dir``) at
     once, e.g. one per core with one thread each: each run is locked by
@@ -727,10 +820,11 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         dict: What ``compare.json`` holds.
     """
     reference = reference_condition(recipes)
+    sources = weights_sources(recipes)
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)
+        check_pretrained(recipes, sources)
     os.makedirs(out_dir, exist_ok=True)
-    sources = weights_sources(recipes)
     # seed-major: a comparison cut short still has every recipe at the
     # seeds it finished
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
@@ -741,6 +835,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     spent, fresh = 0.0, 0
     pending = list(enumerate(jobs, 1))
     missing = []  # runs a tabulation (train=False) leaves out
+    in_progress = []  # runs of other processes, with wait=False
     while pending:
         waiting = []
         for k, (name, config, seed) in pending:
@@ -780,17 +875,26 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 spent += time.perf_counter() - start
                 fresh += 1
                 left -= 1
+        if waiting and not wait:
+            in_progress = [[n, s] for _, (n, _, s) in waiting]
+            log(f'{len(waiting)} run(s) left to other processes, not '
+                'waited for')
+            break
         if waiting and len(waiting) == len(pending):
             # everything left is in other processes' hands: wait for them
             time.sleep(wait_s)
         pending = waiting
+    if not results and in_progress:
+        log('nothing finished yet to tabulate')
+        return dict(set=set_name, runs=[], in_progress=in_progress)
     if not train and not results:
         raise ValueError(
             f'nothing to tabulate: no finished run of these recipes and '
             f'seeds in {out_dir} (with this budget); train them, or put a '
             'record there with --restore')
     results = [results[k] for k in sorted(results)]
-    summary = summarize(results, betas, reference)
+    summary = summarize(results, betas, reference,
+                        SET_COLUMNS.get(set_name))
     record = dict(
         set=set_name, recipes=[dict(name=n, config=c) for n, c in recipes],
         seeds=list(seeds), budget=asdict(budget), data_root=data_root,
@@ -801,12 +905,18 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         runs=results, summary=summary)
     if not train:
         record['missing'] = missing
+    if in_progress:
+        record['in_progress'] = in_progress
     with open(osp.join(out_dir, 'compare.json'), 'w') as f:
         json.dump(record, f, indent=1)
     markdown = to_markdown(summary)
     if missing:
         markdown += '\n\nLeft out (not finished): ' + ', '.join(
             f'{name} seed {seed}' for name, seed in missing) + '.'
+    if in_progress:
+        markdown += ('\n\nLeft out (being trained by another process): '
+                     + ', '.join(f'{name} seed {seed}'
+                                 for name, seed in in_progress) + '.')
     with open(osp.join(out_dir, 'compare.md'), 'w') as f:
         f.write(markdown + '\n')
     plot(summary, betas, osp.join(out_dir, 'compare.png'))

@@ -22,6 +22,7 @@ from mmengine.runner import Runner
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_tools.cpu_distributed import (init_gloo_process_group,
                                          use_gloo_on_cpu)
+from cbnet_tools.pretrained import require_pretrained
 from mmdet.utils import setup_cache_size_limit_of_dynamo
 
 
@@ -142,6 +143,9 @@ def main(argv=None):
     args = parse_args(argv)
     setup_cache_size_limit_of_dynamo()
     cfg = build_cfg(args)
+    # a missing pretrained trunk: an error naming the command that fetches
+    # it, before anything is built
+    require_pretrained(cfg)
     init_gloo_process_group(cfg)
     # as MMDetection's: the config names the runner (ours: CBNetRunner,
     # configs/_base_/default_runtime.py)

@@ -4,6 +4,9 @@ _base_ = './cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py'
 model = dict(
     backbone=dict(
         arch='b0',
-        init_cfg=dict(type='Pretrained',
-                      checkpoint='checkpoints/mit_b0.pth')),
+        # mmsegmentation's ImageNet MiT-B0 (see the base's note)
+        init_cfg=dict(
+            type='Pretrained',
+            checkpoint='https://download.openmmlab.com/mmsegmentation/v0.5/'
+            'pretrain/segformer/mit_b0_20220624-7e0fe6dd.pth')),
     neck=dict(in_channels=[32, 64, 160, 256]))  # MiT-B0 stage widths

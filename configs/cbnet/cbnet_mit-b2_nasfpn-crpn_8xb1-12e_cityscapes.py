@@ -4,6 +4,9 @@ _base_ = './cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py'
 model = dict(
     backbone=dict(
         arch='b2',
-        init_cfg=dict(type='Pretrained',
-                      checkpoint='checkpoints/mit_b2.pth')),
+        # mmsegmentation's ImageNet MiT-B2 (see the base's note)
+        init_cfg=dict(
+            type='Pretrained',
+            checkpoint='https://download.openmmlab.com/mmsegmentation/v0.5/'
+            'pretrain/segformer/mit_b2_20220624-66e8bf70.pth')),
     neck=dict(in_channels=[64, 128, 320, 512]))  # MiT-B2 stage widths

@@ -30,13 +30,28 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             CBNet's box path, Cascade R-CNN and YOLOX-Tiny learning on
             fog vs the last two behind the dark channel prior or the
             learned dehazer; tested on the folder's val split, no betas
+  coco_street  real photographs with masks (the COCO street subset,
+            converted by tools/dataset_converters/coco_street.py) on an
+            ImageNet MobileNetV2 (tools/model_converters/
+            fetch_pretrained.py mobilenet_v2): MMDet's Cascade Mask
+            R-CNN, the paper's CBNet, the revised CBNet, the revised one
+            with RPNHead; mask AP, box AP, mIoU
+  realfog_pretrained  the same recipes box-only on DAWN's fog and haze
+            at 640 px on the same trunk, plus YOLOX-Tiny (from scratch)
+            and the dark channel prior in front of the Cascade R-CNN;
+            box AP, AP50, AP_s/m/l
 
 Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512
 data from `generate_cityscapes_like.py --preset bench`, a budget where
-recipes can be told apart; docs/accuracy.md). Two processes may run the
+recipes can be told apart; docs/accuracy.md); `coco_street` and
+`realfog_pretrained` (photos at most 640x480, batches of 2, the budgets
+of docs/accuracy.md "Real masks" and docs/robustness.md "Real fog on a
+pretrained trunk") are the default of the set of the same name. Two processes may run the
 same comparison at once (one per core, --threads 1): each run is locked
-by the process that trains it. A run saves a checkpoint every sixth of its
+by the process that trains it (--no-wait: a process leaves the runs
+that others train out of its table and ends, e.g. to start its next
+comparison; --report-only tabulates them later). A run saves a checkpoint every sixth of its
 iterations; a run killed mid-way resumes from it when the comparison is
 started again (its record says ``resumed_at_iter``).
 
@@ -63,6 +78,14 @@ Examples::
     # real fog: DAWN's fog/haze photos (docs/robustness.md, "Real fog")
     OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
         --set realfog --data-root data/dawn_fog --threads 1
+    # pretrained trunk: weights once, then real fog and real masks
+    python tools/model_converters/fetch_pretrained.py mobilenet_v2
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set realfog_pretrained --data-root data/dawn_fog --threads 1
+    python tools/dataset_converters/coco_street.py COCO_SUBSET \
+        data/coco_street
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set coco_street --data-root data/coco_street --threads 1
 """
 import argparse
 import sys
@@ -71,8 +94,8 @@ from mmengine.config import Config, DictAction
 
 
 def parse_args(argv=None):
-    from cbnet_lab.recipe_comparison import (PRESETS,
-                                             RECIPE_SETS)
+    from cbnet_lab.recipe_comparison import (PRESETS, RECIPE_SETS,
+                                             SET_PRESETS)
     parser = argparse.ArgumentParser(
         description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -85,9 +108,11 @@ def parse_args(argv=None):
     parser.add_argument('--only', nargs='+', metavar='NAME',
                         help='run only these recipes of the set/configs')
     parser.add_argument('--preset', choices=sorted(PRESETS),
-                        default='demo',
                         help='data root, budget and image size to start '
-                        'from (the options below override it): ' +
+                        'from (the options below override it; default: '
+                        "the set's own (" + ', '.join(
+                            f'{k}: {v}' for k, v in sorted(
+                                SET_PRESETS.items())) + '), else demo): ' +
                         '; '.join(f'{k}: {v.describe()}'
                                   for k, v in sorted(PRESETS.items())))
     parser.add_argument('--data-root',
@@ -124,11 +149,16 @@ def parse_args(argv=None):
                         help='train and test nothing: tabulate the '
                         'finished runs in --work-dir (with --restore, the '
                         "record's) and list the ones left out")
+    parser.add_argument('--no-wait', action='store_true',
+                        help='leave the runs other processes are training '
+                        'out of this table instead of waiting for them')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='overrides applied to every config')
     args = parser.parse_args(argv)
     if args.set is None and not args.configs:
         parser.error('give --set or --configs')
+    if args.preset is None:
+        args.preset = SET_PRESETS.get(args.set, 'demo')
     preset = PRESETS[args.preset]
     # data_root is filled in main(): real-data recipes take their config's
     for key in ('iters', 'batch_size', 'warmup_iters', 'img_scale'):
@@ -167,7 +197,7 @@ def main(argv=None) -> dict:
     recipes = rc.resolve_recipes(args.set, args.configs, args.only)
     data_root, betas = data_and_betas(args, recipes)
     name = args.set or 'custom'
-    if args.preset != 'demo':
+    if args.preset not in ('demo', rc.SET_PRESETS.get(args.set)):
         name += f'_{args.preset}'
     work_dir = args.work_dir or osp.join('work_dirs', 'compare', name)
     budget = Budget(
@@ -179,9 +209,11 @@ def main(argv=None) -> dict:
         print(f'restored {n} finished run(s) from {args.restore}')
     record = rc.compare(recipes, args.seeds, budget, data_root,
                         betas, work_dir, args.cfg_options,
-                        set_name=args.set, train=not args.report_only)
-    print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
-          'compare.png')
+                        set_name=args.set, train=not args.report_only,
+                        wait=not args.no_wait)
+    if 'summary' in record:  # else nothing had finished (--no-wait)
+        print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
+              'compare.png')
     return record
 
 

@@ -4,9 +4,12 @@
 # project's configs, add
 #   custom_imports = dict(imports=['cbnet_mmdet'], allow_failed_imports=False)
 num_classes = 8  # Cityscapes instance classes
-# ImageNet-pretrained MiT weights (official SegFormer `mit_b5.pth` or the
-# mmseg-converted file); see README "Pretrained weights".
-pretrained = 'checkpoints/mit_b5.pth'
+# ImageNet-pretrained MiT weights: mmsegmentation's converted SegFormer
+# file, downloaded on first use as mmseg's own SegFormer configs do; offline,
+# give a local copy (official SegFormer `mit_b5.pth` or mmseg's layout) with
+# --cfg-options model.backbone.init_cfg.checkpoint=checkpoints/mit_b5.pth
+pretrained = ('https://download.openmmlab.com/mmsegmentation/v0.5/pretrain/'
+              'segformer/mit_b5_20220624-658746d9.pth')
 
 model = dict(
     type='CascadeRCNN',

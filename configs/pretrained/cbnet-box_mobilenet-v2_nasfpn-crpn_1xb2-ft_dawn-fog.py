@@ -1,0 +1,22 @@
+# The paper's CBNet box path (NAS-FPN, Cascade RPN, IoUs .5/.7/.9, sigmoid
+# classification) on the pretrained MobileNetV2.
+# Boxes only (DAWN has no masks), fine-tuned from ImageNet (python
+# tools/model_converters/fetch_pretrained.py mobilenet_v2 first) on the
+# train split of DAWN's fog and haze photos, tested on its val split;
+# compared by compare_recipes.py --set realfog_pretrained
+# (docs/robustness.md "Real fog on a pretrained trunk").
+_base_ = [
+    './_base_/models/cbnet_mobilenet-v2_nasfpn-crpn.py',
+    './_base_/datasets/dawn-fog_box.py',
+]
+
+model = dict(
+    data_preprocessor=dict(pad_mask=False),
+    roi_head=dict(mask_roi_extractor=None, mask_head=None))
+
+# the real-fog data in place of the demo's
+data_root = _base_.fog_data_root
+train_dataloader = dict(_delete_=True, **_base_.fog_train_dataloader)
+val_dataloader = test_dataloader = dict(
+    _delete_=True, **_base_.fog_test_dataloader)
+val_evaluator = test_evaluator = _base_.fog_evaluator

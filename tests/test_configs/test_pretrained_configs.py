@@ -1,0 +1,150 @@
+"""configs/pretrained (issue 42): four recipes on one ImageNet MobileNetV2
+at equal widths, data and budget, each on real masks (COCO street) and
+box-only on real fog (DAWN), plus YOLOX-Tiny and the dark channel prior in
+front of the stock cascade; every one builds with no weights file."""
+import glob
+import os.path as osp
+
+import pytest
+import torch
+from mmdet.registry import MODELS
+from mmengine.config import Config
+from mmengine.registry import init_default_scope
+
+from cbnet_lab import recipe_comparison as rc
+from cbnet_tools import pretrained as pt
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+PRETRAINED = osp.join(ROOT, 'configs', 'pretrained')
+DEHAZE = osp.join(ROOT, 'projects', 'peer_dehaze', 'configs', 'pretrained')
+SHIPPED = sorted(glob.glob(osp.join(PRETRAINED, '*.py')) +
+                 glob.glob(osp.join(DEHAZE, '*.py')))
+STREET = dict(rc.resolve_recipes('coco_street'))
+FOG = dict(rc.resolve_recipes('realfog_pretrained'))
+
+
+@pytest.fixture(autouse=True)
+def empty_cache(tmp_path, monkeypatch):
+    """No weights file anywhere the configs look."""
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'empty'))
+
+
+def test_every_config_is_in_a_set():
+    assert sorted(map(osp.normpath, list(STREET.values()) +
+                      list(FOG.values()))) == SHIPPED
+    assert len(STREET) == 4 and len(FOG) == 6
+
+
+@pytest.mark.parametrize('path', SHIPPED, ids=osp.basename)
+def test_builds_and_runs_without_the_weights_file(path):
+    cfg = Config.fromfile(path)
+    assert not osp.exists(pt.pretrained_dir())
+    init_default_scope('mmdet')
+    model = MODELS.build(cfg.model)  # no file read at build time
+    if cfg.model.type != 'YOLOX':
+        assert cfg.model.backbone.init_cfg.checkpoint == \
+            pt.pretrained_path('mobilenet_v2')
+        with pytest.raises(FileNotFoundError,
+                           match='fetch_pretrained.py mobilenet_v2'):
+            pt.require_pretrained(cfg)
+    model.eval()
+    with torch.no_grad():
+        feats = model.extract_feat(torch.zeros(1, 3, 128, 192))
+    assert len(feats) in (3, 5)
+
+
+def _trunk_and_widths(cfg):
+    model = cfg.model
+    return (model.backbone, model.neck.out_channels,
+            model.neck.in_channels, cfg.optim_wrapper.optimizer.lr,
+            cfg.optim_wrapper.paramwise_cfg.custom_keys,
+            model.roi_head.bbox_roi_extractor.out_channels,
+            [h.fc_out_channels for h in model.roi_head.bbox_head],
+            model.train_cfg.rpn_proposal.max_per_img,
+            [s.sampler.num for s in model.train_cfg.rcnn])
+
+
+@pytest.mark.parametrize('recipes', [STREET, FOG], ids=['street', 'fog'])
+def test_equal_trunk_widths_optimiser_and_data(recipes):
+    cfgs = {n: Config.fromfile(p) for n, p in recipes.items()}
+    detectors = {n: c for n, c in cfgs.items() if c.model.type != 'YOLOX'}
+    first = _trunk_and_widths(next(iter(detectors.values())))
+    backbone, width, in_channels, lr, keys = first[:5]
+    assert backbone.type == 'MobileNetV2' and backbone.frozen_stages == 1
+    assert backbone.norm_eval and backbone.out_indices == (1, 2, 4, 7)
+    assert in_channels == [24, 32, 96, 1280] and width == 64
+    assert lr == 2e-4 and keys.backbone.lr_mult == 0.1
+    for name, cfg in detectors.items():
+        assert _trunk_and_widths(cfg) == first, name
+        pre = cfg.model.data_preprocessor
+        # the ImageNet normalisation the weights were trained with, RGB
+        assert pre.mean == [123.675, 116.28, 103.53] and pre.bgr_to_rgb
+    data = {n: (c.train_dataloader, c.test_dataloader, c.test_evaluator,
+                c.test_condition) for n, c in cfgs.items()}
+    assert len({repr(d) for d in data.values()}) == 1
+
+
+def test_the_heads_of_each_recipe():
+    street = {n: Config.fromfile(p).model for n, p in STREET.items()}
+    stock, paper = street['Cascade Mask R-CNN'], street['CBNet']
+    revised, rpn = street['CBNet revised'], street['CBNet revised, RPNHead']
+    assert stock.neck.type == 'FPN' and stock.rpn_head.type == 'RPNHead'
+    assert stock.roi_head.type == 'CascadeRoIHead'
+    assert stock.roi_head.mask_head.type == 'FCNMaskHead'
+    assert [s.assigner.pos_iou_thr for s in stock.train_cfg.rcnn] == \
+        [0.5, 0.6, 0.7]
+    for model in (paper, revised, rpn):
+        assert model.neck.type == 'CBNetNASFPN'
+        assert [s.assigner.pos_iou_thr for s in model.train_cfg.rcnn] == \
+            [0.5, 0.7, 0.9]
+        assert model.roi_head.mask_head.type == 'CBNetBoundaryMaskHead'
+    assert paper.roi_head.type == 'CBNetCascadeRoIHead'
+    assert paper.rpn_head.type == 'CBNetCascadeRPNHead'
+    assert paper.rpn_head.loss_iou.loss_weight == 10.0
+    assert {h.loss_cls.type for h in paper.roi_head.bbox_head} == \
+        {'CBNetSigmoidCrossEntropyLoss'}
+    for model in (revised, rpn):
+        assert model.roi_head.type == 'CascadeRoIHead'  # mask per stage
+        assert {h.loss_cls.type for h in model.roi_head.bbox_head} == \
+            {'CrossEntropyLoss'}
+    assert revised.rpn_head.type == 'CBNetCascadeRPNHead'
+    assert revised.rpn_head.loss_iou.loss_weight == 1.0
+    assert revised.rpn_head.loss_giou.loss_weight == 1.0
+    assert rpn.rpn_head.type == 'RPNHead'
+    # the fog versions are the same heads without masks
+    fog = {n: Config.fromfile(p) for n, p in FOG.items()}
+    pairs = [('Cascade R-CNN', 'Cascade Mask R-CNN'),
+             ('CBNet', 'CBNet'), ('CBNet revised', 'CBNet revised'),
+             ('CBNet revised, RPNHead', 'CBNet revised, RPNHead')]
+    for fog_name, street_name in pairs:
+        model = fog[fog_name].model
+        assert model.roi_head.get('mask_head') is None
+        assert model.rpn_head == street[street_name].rpn_head
+        assert model.roi_head.bbox_head == \
+            street[street_name].roi_head.bbox_head
+    dcp = fog['DCP + Cascade R-CNN'].model
+    assert dcp.data_preprocessor.type == 'CBNetDehazeDataPreprocessor'
+    assert dcp.data_preprocessor.dehaze.type == 'CBNetDarkChannelPrior'
+    assert dcp.roi_head == fog['Cascade R-CNN'].model.roi_head
+    assert fog['YOLOX-Tiny (scratch)'].model.type == 'YOLOX'
+
+
+def test_data_of_the_two_sets():
+    street = Config.fromfile(STREET['CBNet'])
+    assert street.test_condition == 'coco street'
+    assert street.train_dataloader.dataset.type == 'CBNetCityscapesDataset'
+    assert street.train_dataloader.dataset.pipeline[0].type == \
+        'CBNetLoadImageFromFile'
+    assert [e.type for e in street.test_evaluator] == [
+        'CocoMetric', 'CBNetInstanceMIoUMetric']
+    fog = Config.fromfile(FOG['CBNet'])
+    assert fog.test_condition == 'real fog'
+    ds = fog.test_dataloader.dataset
+    assert (ds.type, ds.split, ds.val_fraction, ds.split_seed) == (
+        'CBNetVOCFogDataset', 'val', 0.3, 0)
+    assert fog.train_dataloader.dataset.pipeline[0].type == \
+        'CBNetLoadImageFromFile'
+    # the presets: 640 px wide at most, batches of 2
+    for name in ('coco_street', 'realfog_pretrained'):
+        preset = rc.PRESETS[rc.SET_PRESETS[name]]
+        assert preset.img_scale == (640, 480) and preset.batch_size == 2
