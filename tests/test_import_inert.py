@@ -8,7 +8,8 @@ torch's safe globals, every registry (MMEngine's roots and their children,
 MMDetection's), the functions and classes of torch / MMEngine / MMCV /
 MMDetection / NumPy (and the attributes of those classes) and the
 environment are snapshot before and after ``import cbnet_mmdet``. Allowed:
-new names starting with ``CBNet`` in MMDetection's registries. No
+new names starting with ``CBNet`` in MMDetection's registries, and one new
+MMEngine file backend, ``cbnet_image`` (the checked image reader). No
 compatibility shim is needed (``CBNetRunner`` enters MMEngine's allow-list
 around its own loading only), so none is allowed.
 """
@@ -41,6 +42,7 @@ for name in json.loads(open(sys.argv[1]).read()):
 import torch
 import mmengine.registry.root as roots
 from mmengine.registry import Registry
+from mmengine.fileio.backends import registry_utils as file_backends
 from mmengine.runner import CheckpointLoader
 
 PATCHABLE = ('torch', 'mmengine', 'mmcv', 'mmdet', 'numpy')
@@ -89,6 +91,10 @@ def callables():
 def snapshot():
     return dict(
         schemes={k: name_of(v) for k, v in CheckpointLoader._schemes.items()},
+        file_backends={k: name_of(v)
+                       for k, v in file_backends.backends.items()},
+        file_prefixes={k: name_of(v)
+                       for k, v in file_backends.prefix_to_backends.items()},
         safe_globals=sorted(
             str(g) for g in torch.serialization.get_safe_globals()),
         registries=registries(),
@@ -113,6 +119,8 @@ patched = [
 print(json.dumps(dict(
     added=sorted(added), changed=sorted(changed), patched=sorted(patched),
     schemes=[before['schemes'], after['schemes']],
+    file_backends=[before['file_backends'], after['file_backends']],
+    file_prefixes=[before['file_prefixes'], after['file_prefixes']],
     safe_globals=[before['safe_globals'], after['safe_globals']],
     environ=sorted(set(before['environ'].items()) ^
                    set(after['environ'].items())))))
@@ -150,6 +158,18 @@ def test_mmengine_checkpoint_loader_untouched(diff):
     before, after = diff['schemes']
     assert after == before
     assert before[''] == 'mmengine.runner.checkpoint.load_from_local'
+
+
+def test_file_backends_only_gain_the_checked_image_backend(diff):
+    # MMEngine's file backends are a registry too: the plugin adds its
+    # checked image reader under its own name (configs opt in with
+    # backend_args=dict(backend='cbnet_image')) and replaces none
+    before, after = diff['file_backends']
+    assert {k: v for k, v in after.items() if k in before} == before
+    assert {k: v for k, v in after.items() if k not in before} == {
+        'cbnet_image': 'cbnet_mmdet.datasets.transforms.image_file_backend.'
+        'CBNetImageFileBackend'}
+    assert diff['file_prefixes'][1] == diff['file_prefixes'][0]
 
 
 def test_torch_safe_globals_untouched(diff):
