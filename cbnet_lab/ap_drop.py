@@ -23,6 +23,7 @@ from mmengine.runner import Runner
 
 from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
 from cbnet_tools.markdown import markdown_table
+from cbnet_tools.quick_eval import check_subset_scoring
 
 from .metric_keys import columns
 
@@ -100,6 +101,7 @@ def evaluate_checkpoint(cfg: Config, checkpoint: str, work_dir: str,
         :func:`with_empty_coco_results`.
     """
     cfg = copy.deepcopy(cfg)
+    check_subset_scoring(cfg)  # a subset scored against every image
     cfg.load_from = checkpoint
     require_checkpoint_fit(cfg)  # refuse a checkpoint of another model
     cfg.work_dir = osp.join(work_dir, name)
@@ -166,10 +168,12 @@ def drop_table(metrics: Dict[str, Dict[str, float]]) -> dict:
     Returns:
         dict: ``{'columns': [...], 'rows': [{'condition', <column>...,
         '<column> drop'...}]}``, values in percent (None if the metric is
-        missing).
+        missing). With a single condition (a real-fog set, nothing to drop
+        from) there are no drop columns.
     """
     rows: List[dict] = []
     ref = None
+    drops = DROP_COLUMNS if len(metrics) > 1 else ()
     for condition, m in metrics.items():
         row = {'condition': condition}
         for col, key, scale in COLUMNS:
@@ -177,11 +181,11 @@ def drop_table(metrics: Dict[str, Dict[str, float]]) -> dict:
             row[col] = None if val is None or val < 0 else float(val) * scale
         if ref is None:
             ref = row
-        for col in DROP_COLUMNS:
+        for col in drops:
             both = row[col] is not None and ref[col] is not None
             row[f'{col} drop'] = ref[col] - row[col] if both else None
         rows.append(row)
-    columns = [c for c, _, _ in COLUMNS] + [f'{c} drop' for c in DROP_COLUMNS]
+    columns = [c for c, _, _ in COLUMNS] + [f'{c} drop' for c in drops]
     return dict(columns=columns, rows=rows)
 
 

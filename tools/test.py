@@ -6,8 +6,16 @@ Apache-2.0): same arguments and runner set-up.
 Usage::
 
     python tools/test.py CONFIG CHECKPOINT [--work-dir DIR] [--out RESULTS.pkl]
+        [--num-images N]
     bash tools/dist_test.sh CONFIG CHECKPOINT NUM_GPUS [...]
     mim test cbnet_mmdet CONFIG --checkpoint CHECKPOINT
+
+``--num-images N`` tests the first N test images and scores them against
+their own ground truth only (the cut annotation files are written to
+``{work_dir}/first_N_images/``; cbnet_tools.quick_eval). A config whose
+``test_dataloader.dataset.indices`` is set while an evaluator reads a
+whole ``ann_file`` is refused: its AP would count the objects of the
+images not tested as missed.
 """
 import argparse
 import os
@@ -22,6 +30,7 @@ import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
 from cbnet_tools.cpu_distributed import (init_gloo_process_group,
                                          use_gloo_on_cpu)
+from cbnet_tools.quick_eval import check_subset_scoring, first_images_cfg
 from mmdet.utils import setup_cache_size_limit_of_dynamo
 
 
@@ -34,6 +43,10 @@ def parse_args(argv=None):
         '--out', type=str, help='dump predictions to a pickle file')
     parser.add_argument(
         '--show-dir', help='save drawn predictions into this folder')
+    parser.add_argument(
+        '--num-images', type=int, metavar='N',
+        help='test the first N images only, scored against their own '
+        'ground truth')
     parser.add_argument(
         '--cfg-options',
         nargs='+',
@@ -63,6 +76,11 @@ def build_cfg(args) -> Config:
     elif cfg.get('work_dir', None) is None:
         cfg.work_dir = osp.join('./work_dirs',
                                 osp.splitext(osp.basename(args.config))[0])
+    if args.num_images is not None:
+        cfg = first_images_cfg(
+            cfg, args.num_images,
+            osp.join(cfg.work_dir, f'first_{args.num_images}_images'))
+    check_subset_scoring(cfg)
     cfg.load_from = args.checkpoint
     # a checkpoint that does not fill the model is refused, not evaluated
     # with random weights where it does not fit
@@ -98,7 +116,7 @@ def main(argv=None):
         runner = Runner.from_cfg(cfg)
     else:
         runner = RUNNERS.build(cfg)
-    runner.test()
+    return runner.test()
 
 
 if __name__ == '__main__':

@@ -51,6 +51,16 @@ def test_drop_table_and_markdown():
     assert md[3].startswith('| foggy | 45.0 | 37.0 | - | 30.0 | 5.0 |')
 
 
+def test_a_single_condition_has_no_drop():
+    """A real-fog set alone has no reference: no "drop 0.0" columns."""
+    table = drop_table({'real fog': {'coco/bbox_mAP': 0.5}})
+    assert table['columns'] == ['box AP', 'mask AP', 'mask AP50', 'mIoU']
+    assert table['rows'] == [{'condition': 'real fog', 'box AP': 50.0,
+                              'mask AP': None, 'mask AP50': None,
+                              'mIoU': None}]
+    assert 'drop' not in to_markdown(table)
+
+
 def expected_ap(coco: dict, num_dropped: int) -> float:
     """COCO mAP (percent) of exact predictions (score 1, IoU 1 at every
     threshold) of all non-crowd instances but the first ``num_dropped`` of

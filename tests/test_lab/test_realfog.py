@@ -100,6 +100,9 @@ def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
     assert table['rows'][0]['box AP'] == pytest.approx(
         100.0 * (len(present) - 1) / len(present), abs=0.05)  # 3 decimals
     assert table['rows'][0]['mIoU'] is None
+    # one condition, nothing to drop from: no drop column printed
+    assert not any('drop' in c for c in table['columns'])
+    assert 'drop' not in (tmp_path / 'out' / 'ap_drop.md').read_text()
     with open(tmp_path / 'out' / 'ap_drop.json') as f:
         assert json.load(f)['rows'] == table['rows']
     real = real_fog_cfg(Config.fromfile(DATASET_CFG), '/data/rtts',

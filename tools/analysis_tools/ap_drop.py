@@ -22,7 +22,13 @@ ignored; no betas), e.g. DAWN's fog photos or RTTS (PNG images)::
         test_dataloader.dataset.img_suffix=.png
 
 A real-data config (``test_condition = NAME``, the box-only recipes of
-``configs/realfog/``) is tested on its own test set only (no betas).
+``configs/realfog/``) is tested on its own test set only (no betas); a
+single condition has no reference to drop from, so its table has no drop
+columns.
+
+Quick evaluation. ``--num-images N`` tests the first N images of each
+condition, scored against their own ground truth only (the cut annotation
+files go to ``{out-dir}/first_N_images/``).
 """
 import argparse
 import json
@@ -34,6 +40,7 @@ from mmengine.config import Config, DictAction
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_lab.ap_drop import (ap_drop, default_betas,
                                real_fog_cfg, to_markdown)
+from cbnet_tools.quick_eval import first_images_cfg
 
 
 def parse_args(argv=None):
@@ -48,6 +55,9 @@ def parse_args(argv=None):
     parser.add_argument('--real-fog', metavar='DIR',
                         help='test on the val split of this VOC real-fog '
                         'folder (boxes only) instead')
+    parser.add_argument('--num-images', type=int, metavar='N',
+                        help='test the first N images only, scored against '
+                        'their own ground truth')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='override config keys')
     return parser.parse_args(argv)
@@ -61,6 +71,10 @@ def main(argv=None):
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
     os.makedirs(args.out_dir, exist_ok=True)
+    if args.num_images is not None:
+        cfg = first_images_cfg(
+            cfg, args.num_images,
+            osp.join(args.out_dir, f'first_{args.num_images}_images'))
     betas = default_betas(cfg) if args.betas is None else args.betas
     table = ap_drop(cfg, args.checkpoint, args.out_dir, betas)
     md = to_markdown(table)
