@@ -28,8 +28,7 @@ split of docs/accuracy.md.
 
 Usage::
 
-    python tools/dataset_converters/coco_street.py \\
-        ../shared/data/coco_street data/coco_street
+    python tools/dataset_converters/coco_street.py COCO_DIR data/coco_street
 """
 import argparse
 import json
