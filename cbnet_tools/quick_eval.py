@@ -25,9 +25,10 @@ from typing import List, Sequence
 from mmengine.config import Config
 
 #: What the refusal of :func:`check_subset_scoring` advises.
-ADVICE = ('use --num-images N of tools/test.py or '
-          'tools/analysis_tools/ap_drop.py (cbnet_tools.quick_eval), which '
-          'scores the first N images against their own ground truth')
+ADVICE = ('use --num-images N of tools/test.py, '
+          'tools/analysis_tools/ap_drop.py or test_robustness.py '
+          '(cbnet_tools.quick_eval), which scores the first N images '
+          'against their own ground truth')
 
 
 def _evaluators(cfg: Config) -> List[dict]:

@@ -211,6 +211,22 @@ def test_clean_run_is_added_for_mpc(oracle, tmp_path, capsys):
     assert report['summaries']['box AP']['mPC'] == 1.0
 
 
+def test_tool_num_images_scores_those_images_only(oracle, tmp_path):
+    """--num-images 1: one image per condition, scored against its own
+    ground truth (the oracle's 100 AP; against the whole val file the
+    second image's objects would count as missed)."""
+    tool = _load(osp.join(ROOT, 'tools', 'analysis_tools',
+                          'test_robustness.py'), 'test_robustness_tool')
+    report = tool.main([oracle['cfg_file'], oracle['ckpt'], '--corruptions',
+                        'fog', '--severities', '0', '1', '--num-images',
+                        '1', '--out-dir', str(tmp_path / 'out')])
+    paths = [p for p, _ in oracle['seen']]
+    assert len(paths) == 2 and paths[0] == paths[1]
+    box = report['summaries']['box AP']
+    assert box['P'] == box['mPC'] == 1.0
+    assert len(list((tmp_path / 'out' / 'first_1_images').iterdir())) == 1
+
+
 @pytest.mark.slow  # the demo model and CBNet-DD, random weights: ~1 min
 @pytest.mark.parametrize('distill', [False, True])
 def test_tool_runs_demo_and_cbnet_dd(cityscapes_like_root, tmp_path,

@@ -13,7 +13,11 @@ Usage::
     python tools/analysis_tools/test_robustness.py CONFIG CHECKPOINT \
         [--corruptions weather] [--severities 0 1 2 3 4 5] \
         [--betas 0.005 0.01 0.02] [--out-dir work_dirs/robustness] \
-        [--aggregate benchmark] [--cfg-options ...]
+        [--aggregate benchmark] [--num-images N] [--cfg-options ...]
+
+``--num-images N`` tests the first N images under every corruption and
+fog density, scored against their own ground truth only (the cut
+annotation files go to ``{out-dir}/first_N_images/``).
 
 Writes to ``--out-dir``:
 
@@ -43,6 +47,7 @@ from cbnet_lab.robustness import (SUMMARY_METRICS,
                                   run_benchmark, summarize,
                                   to_markdown)
 from cbnet_tools.markdown import markdown_table
+from cbnet_tools.quick_eval import first_images_cfg
 
 
 def parse_args(argv=None):
@@ -65,6 +70,9 @@ def parse_args(argv=None):
     parser.add_argument('--out-dir', default='work_dirs/robustness')
     parser.add_argument('--seed', type=int, default=0,
                         help='seed of the (random) corruptions')
+    parser.add_argument('--num-images', type=int, metavar='N',
+                        help='test the first N images only, scored against '
+                        'their own ground truth')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='override config keys')
     return parser.parse_args(argv)
@@ -75,6 +83,10 @@ def main(argv=None):
     cfg = Config.fromfile(args.config)
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
+    if args.num_images is not None:
+        cfg = first_images_cfg(
+            cfg, args.num_images,
+            osp.join(args.out_dir, f'first_{args.num_images}_images'))
     cfg.randomness = dict(seed=args.seed)
     if any(s > 0 for s in args.severities) and 0 not in args.severities:
         # P (the clean score) is what mPC and rPC are relative to
