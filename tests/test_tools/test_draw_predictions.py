@@ -30,7 +30,7 @@ def test_clear_and_foggy_panels(cityscapes_like_root, tmp_path, capsys):
 def test_threshold_is_the_evaluations(capsys):
     """Drawn from the score the config's mIoU evaluation paints masks from
     (not MMDet's 0.3, where a short-trained demo model shows nothing), as
-    the README says."""
+    docs/get_started.md says."""
     tool = load_tool('misc/draw_predictions.py')
     cfg = Config.fromfile(DEMO)
     (miou, ) = [e for e in cfg.test_evaluator
@@ -39,9 +39,10 @@ def test_threshold_is_the_evaluations(capsys):
     assert thr == miou['score_thr'] and 'CBNetInstanceMIoUMetric' in source
     assert tool.parse_args([DEMO, 'c.pth', 'i.png', '--out',
                             'o.png']).score_thr is None
-    with open(osp.join(osp.dirname(DEMO), '..', '..', 'README.md')) as f:
-        readme = ' '.join(f.read().split())
-    assert f'(clear | beta 0.01 | beta 0.02) from score {thr},' in readme
+    with open(osp.join(osp.dirname(DEMO), '..', '..', 'docs',
+                       'get_started.md')) as f:
+        guide = ' '.join(f.read().split())
+    assert f'(clear | beta 0.01 | beta 0.02) from score {thr},' in guide
     # a config without the metric: MMDet's default, said so
     assert tool.evaluation_score_thr(Config(dict(test_evaluator=dict(
         type='CocoMetric')))) == (0.3, "MMDetection's default")

@@ -1,0 +1,167 @@
+"""What a user reads stays readable and points where it says:
+
+* the README is short (at most :data:`README_MAX_LINES` lines);
+* docs/README.md, the index, names every page of docs/ and every
+  project's README;
+* no page a user reads (README, docs/*.md, projects/*/README.md) carries
+  the development history's issue numbers or the development machines'
+  paths;
+* every relative link of those pages reaches an existing file and, where
+  it names one, an existing heading of a markdown file (GitHub's anchor of
+  the heading).
+"""
+import glob
+import os.path as osp
+import re
+
+import pytest
+
+ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+README_MAX_LINES = 230
+#: An issue of the development history: ``issue 42``, ``issues 23``,
+#: ``#23`` (not inside a link's anchor), an anchor ``...-issue-42``.
+ISSUE_REF = re.compile(r'\bissues? \d+|(?<![\w#/&])#\d+\b', flags=re.I)
+#: The anchor of a heading that named an issue.
+ISSUE_ANCHOR = re.compile(r'-issue-\d+\b', flags=re.I)
+#: Paths of the machines the project is developed on.
+DEV_PATH = re.compile(r'/work/|\.\./shared\b|\bshared/data\b')
+#: ``[text](target)`` of a markdown link or image.
+LINK = re.compile(r'\]\(([^)\s]+)\)')
+FENCE = re.compile(r'^(```|~~~).*?^\1', flags=re.S | re.M)
+
+
+def user_pages(root=ROOT):
+    """README.md, docs/*.md (the index included) and the projects'
+    READMEs, as paths."""
+    return [osp.join(root, 'README.md')] + sorted(
+        glob.glob(osp.join(root, 'docs', '*.md')) +
+        glob.glob(osp.join(root, 'projects', '*', 'README.md')))
+
+
+def _read(path):
+    with open(path, encoding='utf-8') as f:
+        return f.read()
+
+
+def _rel(path, root=ROOT):
+    return osp.relpath(path, root)
+
+
+def github_anchor(heading):
+    """GitHub's anchor of a heading's text: lower case, punctuation other
+    than ``-`` and ``_`` dropped, each space a ``-``."""
+    text = re.sub(r'\[([^\]]*)\]\([^)]*\)', r'\1', heading.strip())
+    text = re.sub(r'[^\w\- ]', '', text.lower())
+    return text.replace(' ', '-')
+
+
+def anchors(path):
+    """Every anchor of a markdown file's headings (code blocks skipped;
+    a repeated heading gets ``-1``, ``-2`` ... as on GitHub)."""
+    text = FENCE.sub('', _read(path))
+    seen, out = {}, set()
+    for line in text.splitlines():
+        match = re.match(r'#{1,6} +(.*?) *#* *$', line)
+        if not match:
+            continue
+        anchor = github_anchor(match.group(1))
+        n = seen.get(anchor, 0)
+        seen[anchor] = n + 1
+        out.add(anchor if n == 0 else f'{anchor}-{n}')
+    return out
+
+
+def broken_links(path, root=ROOT):
+    """(link, why) of every relative link of ``path`` whose file is
+    missing, lies outside the repository, or whose anchor names no
+    heading of the markdown file it points at."""
+    text = FENCE.sub('', _read(path))
+    bad = []
+    for target in LINK.findall(text):
+        if '://' in target or target.startswith('mailto:'):
+            continue
+        file_part, _, anchor = target.partition('#')
+        full = osp.normpath(osp.join(osp.dirname(path), file_part)) \
+            if file_part else path
+        if not (full + '/').startswith(osp.normpath(root) + '/'):
+            bad.append((target, 'outside the repository'))
+        elif not osp.exists(full):
+            bad.append((target, 'no such file'))
+        elif anchor and full.endswith('.md') and \
+                anchor not in anchors(full):
+            bad.append((target, f'no heading with anchor #{anchor} in '
+                        f'{_rel(full, root)}'))
+    return bad
+
+
+def forbidden_mentions(text):
+    """(line number, text) of each issue reference or development-machine
+    path outside link targets' anchors."""
+    out = []
+    for number, line in enumerate(text.splitlines(), 1):
+        # a link's target is a file or an anchor (``](#3-seeds)``), not
+        # prose: only a stale issue anchor or a machine path counts there
+        prose = LINK.sub('](link)', line)
+        out += [(number, m.group(0)) for m in ISSUE_REF.finditer(prose)]
+        out += [(number, m.group(0)) for m in ISSUE_ANCHOR.finditer(line)]
+        out += [(number, m.group(0)) for m in DEV_PATH.finditer(line)]
+    return out
+
+
+def test_readme_is_short():
+    lines = _read(osp.join(ROOT, 'README.md')).splitlines()
+    assert len(lines) <= README_MAX_LINES, (
+        f'README.md has {len(lines)} lines (at most {README_MAX_LINES}): '
+        'move detail to docs/ and link it')
+
+
+def test_docs_index_names_every_page():
+    index = osp.join(ROOT, 'docs', 'README.md')
+    targets = {osp.normpath(osp.join(osp.dirname(index), t.split('#')[0]))
+               for t in LINK.findall(_read(index))}
+    pages = [p for p in user_pages() if p != index and
+             _rel(p) != 'README.md']
+    missing = [_rel(p) for p in pages if p not in targets]
+    assert not missing, f'docs/README.md does not list: {missing}'
+
+
+@pytest.mark.parametrize('page', user_pages(), ids=_rel)
+def test_no_issue_numbers_or_machine_paths(page):
+    found = forbidden_mentions(_read(page))
+    assert not found, (f'{_rel(page)} names the development history or '
+                       f'machines (line, text): {found}')
+
+
+@pytest.mark.parametrize('page', user_pages(), ids=_rel)
+def test_relative_links_resolve(page):
+    bad = broken_links(page)
+    assert not bad, f'{_rel(page)}: broken links: {bad}'
+
+
+def test_the_checks_see_what_they_should(tmp_path):
+    """The checkers themselves, on a small tree: a missing file, a missing
+    anchor, a link outside the tree, issue numbers and machine paths are
+    found; a good link, a heading's anchor and a heading inside a code
+    block (not an anchor) are told apart."""
+    docs = tmp_path / 'docs'
+    docs.mkdir()
+    (docs / 'a.md').write_text(
+        '# Page A\n\n## Real fog on a trunk (`realfog`), 3 seeds\n\n'
+        '## Same\n\n## Same\n\n```bash\n# not a heading\n```\n')
+    page = docs / 'b.md'
+    page.write_text(
+        '[ok](a.md#real-fog-on-a-trunk-realfog-3-seeds) [ok2](a.md#same-1)'
+        ' [self](#b) [missing](nope.md) [anchor](a.md#not-a-heading)'
+        ' [out](../../x.md) [web](https://example.org/#3)\n\n# B\n'
+        'As issue 42 asks (#23), see /work/main and ../shared/data;'
+        ' [x](a.md#page-a) and a colour &#38;.\n')
+    assert anchors(str(docs / 'a.md')) == {
+        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1'}
+    bad = dict(broken_links(str(page), root=str(tmp_path)))
+    assert set(bad) == {'nope.md', 'a.md#not-a-heading', '../../x.md'}
+    assert 'outside' in bad['../../x.md']
+    found = [m for _, m in forbidden_mentions(page.read_text())]
+    assert found == ['issue 42', '#23', '/work/', '../shared']
+    assert forbidden_mentions('[a](b.md#c) and &#38; and x#1') == []
+    assert forbidden_mentions('anchor (x.md#real-fog-issue-42)') == [
+        (1, '-issue-42')]
