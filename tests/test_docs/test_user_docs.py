@@ -8,7 +8,9 @@
   paths;
 * every relative link of those pages reaches an existing file and, where
   it names one, an existing heading of a markdown file (GitHub's anchor of
-  the heading).
+  the heading);
+* every page of docs/ and every project's README starts with its current
+  answer ("In short").
 """
 import glob
 import os.path as osp
@@ -165,3 +167,16 @@ def test_the_checks_see_what_they_should(tmp_path):
     assert forbidden_mentions('[a](b.md#c) and &#38; and x#1') == []
     assert forbidden_mentions('anchor (x.md#real-fog-issue-42)') == [
         (1, '-issue-42')]
+
+
+@pytest.mark.parametrize(
+    'page', [p for p in user_pages()
+             if _rel(p) not in ('README.md', osp.join('docs', 'README.md'))],
+    ids=_rel)
+def test_page_starts_with_its_answer(page):
+    """Below its title, every page of docs/ and every project's README
+    starts with its current answer: an "In short" paragraph or section."""
+    lines = [line for line in _read(page).splitlines()[1:] if line.strip()]
+    assert lines and lines[0].startswith(('In short', '## In short')), (
+        f'{_rel(page)} does not start with "In short" under its title: '
+        f'{lines[:1]}')
