@@ -1,7 +1,7 @@
 # CBNet, MiT-B5 (the paper's headline model) on Cityscapes, 8 classes.
 # Paper recipe: 12 epochs, AdamW lr 6e-5 (weight decay 0.01), poly decay,
 # MiT ImageNet-pretrained (mmsegmentation's mit_b5, downloaded on first use;
-# README "Pretrained weights" for a local copy).
+# docs/install.md "Pretrained weights" for a local copy).
 _base_ = [
     '../_base_/models/cbnet_mit-b5_nasfpn_crpn_cascade.py',
     '../_base_/datasets/cityscapes_instance.py',

@@ -12,7 +12,7 @@ data_root = 'data/cityscapes_like_bench/'
 val_ann_file = data_root + 'annotations/instancesonly_filtered_gtFine_val.json'
 # 8 epochs of the 160 training images that hold objects (the loader drops
 # the empty fifth), batch 4: 320 steps, 7 minutes on a 2-core CPU with
-# nothing else running. The demo's run from a fresh clone (README,
+# nothing else running. The demo's run from a fresh clone (docs/get_started.md,
 # 2026-11-26): 29.7 box AP / 18.1 mask AP / 43.0 mIoU on clear val, 4.0
 # mask AP lost at beta 0.02; the full-size benchmark run stopped at 150
 # steps had scored 5.2 mask AP

@@ -4,7 +4,7 @@ Trains the demo config (MiT-B0 CBNet, from scratch) for a few epochs on a
 small seeded Cityscapes-like set and checks that its segm AP50 on the val
 split is clearly above the same model's untrained AP50. The figures are
 printed (pytest -s) and written to ``work_dirs/e2e_learning.json`` for the
-README.
+docs/get_started.md.
 """
 import json
 import os

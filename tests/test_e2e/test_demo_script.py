@@ -2,9 +2,9 @@
 small size (8 train / 4 val images of the benchmark preset, one epoch):
 every step runs through the user's path (install check, generator,
 ``mim train``, ``ap_drop.py``, ``draw_predictions.py``) and leaves what
-the README says it leaves. How well the demo model learns is
-``test_demo_learns.py``'s question; the full demo's figures are in the
-README."""
+docs/get_started.md says it leaves. How well the demo model learns is
+``test_demo_learns.py``'s question; the full demo's figures are in
+docs/get_started.md."""
 import json
 import os
 import os.path as osp
