@@ -221,8 +221,9 @@ def test_no_training_image_left_is_an_error(tmp_path):
 @pytest.mark.skipif(not osp.isdir(DAWN), reason='no DAWN copy at '
                     '../shared/data/dawn_fog')
 def test_dawn_fog_copy_reads_with_its_documented_counts():
-    """docs/robustness.md's counts (218 photos; car 944, person 101, truck 74, bus
-    47, motorcycle 19, bicycle 10) over the two seeded subsets."""
+    """docs/robustness.md's counts (218 photos; car 944, person 101,
+    truck 74, bus 47, motorcycle 19, bicycle 10) over the two seeded
+    subsets."""
     counts, sizes = Counter(), {}
     for split in ('train', 'val'):
         ds = CBNetVOCFogDataset(data_root=DAWN, ann_file='', split=split,
