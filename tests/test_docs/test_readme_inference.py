@@ -40,8 +40,8 @@ def test_readme_inference_runs_as_written(cityscapes_like_root, tmp_path,
     # the layout the demo leaves
     os.symlink(osp.join(ROOT, 'configs'), tmp_path / 'configs')
     (tmp_path / 'data').mkdir()
-    os.symlink(cityscapes_like_root, tmp_path / 'data' /
-               'cityscapes_like_bench')
+    os.symlink(cityscapes_like_root,
+               tmp_path / 'data' / 'cityscapes_like_bench')
     assert folder.startswith('data/cityscapes_like_bench/')
     images = sorted(glob.glob(str(tmp_path / folder / '*.png')))
     assert images, f'the tiny set has no image under {folder}'
@@ -51,9 +51,12 @@ def test_readme_inference_runs_as_written(cityscapes_like_root, tmp_path,
     model = MODELS.build(cfg.model)
     model.init_weights()
     os.makedirs(osp.dirname(tmp_path / weights))
-    torch.save(dict(state_dict=model.state_dict(),
-                    meta=dict(dataset_meta=dict(CityscapesDataset.METAINFO),
-                              cfg=cfg.pretty_text)), tmp_path / weights)
+    torch.save(
+        dict(
+            state_dict=model.state_dict(),
+            meta=dict(
+                dataset_meta=dict(CityscapesDataset.METAINFO),
+                cfg=cfg.pretty_text)), tmp_path / weights)
     monkeypatch.chdir(tmp_path)
     scope = {}
     exec(compile(snippet, 'README.md', 'exec'), scope)  # noqa: S102
@@ -61,6 +64,7 @@ def test_readme_inference_runs_as_written(cityscapes_like_root, tmp_path,
     assert len(result['predictions']) == len(images)
     for pred in result['predictions']:
         assert set(pred) >= {'labels', 'scores', 'bboxes', 'masks'}
-    drawn = sorted(osp.basename(p) for p in
-                   glob.glob(str(tmp_path / 'outputs' / 'vis' / '*.png')))
+    drawn = sorted(
+        osp.basename(p)
+        for p in glob.glob(str(tmp_path / 'outputs' / 'vis' / '*.png')))
     assert drawn == [osp.basename(p) for p in images]

@@ -119,10 +119,12 @@ def test_readme_is_short():
 
 def test_docs_index_names_every_page():
     index = osp.join(ROOT, 'docs', 'README.md')
-    targets = {osp.normpath(osp.join(osp.dirname(index), t.split('#')[0]))
-               for t in LINK.findall(_read(index))}
-    pages = [p for p in user_pages() if p != index and
-             _rel(p) != 'README.md']
+    targets = {
+        osp.normpath(osp.join(osp.dirname(index),
+                              t.split('#')[0]))
+        for t in LINK.findall(_read(index))
+    }
+    pages = [p for p in user_pages() if p != index and _rel(p) != 'README.md']
     missing = [_rel(p) for p in pages if p not in targets]
     assert not missing, f'docs/README.md does not list: {missing}'
 
@@ -158,7 +160,8 @@ def test_the_checks_see_what_they_should(tmp_path):
         'As issue 42 asks (#23), see /work/main and ../shared/data;'
         ' [x](a.md#page-a) and a colour &#38;.\n')
     assert anchors(str(docs / 'a.md')) == {
-        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1'}
+        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1'
+    }
     bad = dict(broken_links(str(page), root=str(tmp_path)))
     assert set(bad) == {'nope.md', 'a.md#not-a-heading', '../../x.md'}
     assert 'outside' in bad['../../x.md']
@@ -166,12 +169,15 @@ def test_the_checks_see_what_they_should(tmp_path):
     assert found == ['issue 42', '#23', '/work/', '../shared']
     assert forbidden_mentions('[a](b.md#c) and &#38; and x#1') == []
     assert forbidden_mentions('anchor (x.md#real-fog-issue-42)') == [
-        (1, '-issue-42')]
+        (1, '-issue-42')
+    ]
 
 
 @pytest.mark.parametrize(
-    'page', [p for p in user_pages()
-             if _rel(p) not in ('README.md', osp.join('docs', 'README.md'))],
+    'page', [
+        p for p in user_pages()
+        if _rel(p) not in ('README.md', osp.join('docs', 'README.md'))
+    ],
     ids=_rel)
 def test_page_starts_with_its_answer(page):
     """Below its title, every page of docs/ and every project's README
