@@ -10,7 +10,9 @@
   it names one, an existing heading of a markdown file (GitHub's anchor of
   the heading);
 * every page of docs/ and every project's README starts with its current
-  answer ("In short").
+  answer ("In short");
+* every registered name of the README's components table is in an MMDet
+  registry once the plugin is imported, in the file the table names.
 """
 import glob
 import os.path as osp
@@ -186,3 +188,32 @@ def test_page_starts_with_its_answer(page):
     assert lines and lines[0].startswith(('In short', '## In short')), (
         f'{_rel(page)} does not start with "In short" under its title: '
         f'{lines[:1]}')
+
+
+def readme_components():
+    """(registered names, files) of each row of the README's components
+    table; files are relative to ``cbnet_mmdet/``."""
+    text = _read(osp.join(ROOT, 'README.md'))
+    section = text.split('\n## Components\n', 1)[1].split('\n## ', 1)[0]
+    lines = [line for line in section.splitlines() if line.startswith('|')]
+    rows = [line.split(' | ') for line in lines[2:]]  # after the header
+    return [(re.findall(r'`([^`]+)`',
+                        row[1]), re.findall(r'`([^`]+)`', row[2]))
+            for row in rows]
+
+
+def test_readme_components_are_registered_where_it_says():
+    from mmdet.registry import DATASETS, HOOKS, METRICS, MODELS
+
+    import cbnet_mmdet  # noqa: F401
+    rows = readme_components()
+    assert len(rows) >= 8, rows
+    for names, files in rows:
+        assert names and files, (names, files)
+        for name in names:
+            assert any(name in registry.module_dict
+                       for registry in (MODELS, DATASETS, METRICS, HOOKS)), \
+                f'README names {name}, which no MMDet registry holds'
+        for path in files:
+            assert osp.exists(osp.join(ROOT, 'cbnet_mmdet', path)), \
+                f'README: cbnet_mmdet/{path} does not exist'
