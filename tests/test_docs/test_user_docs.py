@@ -12,7 +12,7 @@
 * every page of docs/ and every project's README starts with its current
   answer ("In short");
 * every registered name of the README's components table is in an MMDet
-  registry once the plugin is imported, in the file the table names.
+  registry once the plugin is imported, and every file it names exists.
 """
 import glob
 import os.path as osp
