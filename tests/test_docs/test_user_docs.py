@@ -12,11 +12,16 @@
 * every page of docs/ and every project's README starts with its current
   answer ("In short");
 * every registered name of the README's components table is in an MMDet
-  registry once the plugin is imported, and every file it names exists.
+  registry once the plugin is imported, and every file it names exists;
+* every figure of the README's results table is one that its row's linked
+  JSON record gives (a seed mean or std, a ratio of median times, or a
+  value it holds), and a row without a record quotes none.
 """
 import glob
+import json
 import os.path as osp
 import re
+import statistics
 
 import pytest
 
@@ -217,3 +222,108 @@ def test_readme_components_are_registered_where_it_says():
         for path in files:
             assert osp.exists(osp.join(ROOT, 'cbnet_mmdet', path)), \
                 f'README: cbnet_mmdet/{path} does not exist'
+
+
+def record_numbers(record):
+    """Every figure a table may quote from a JSON record, computed here
+    from its raw content (not from a summary the record may also hold):
+    its numeric leaves; for a comparison record (``runs`` of ``recipe`` /
+    ``seed`` / ``metrics``) the mean and sample std over seeds, in percent,
+    of each recipe's metric under each condition; for a benchmark record
+    (``inference_round_times_s``) the ratio of the median round times of
+    any two models of one cell."""
+    out = []
+
+    def leaves(obj):
+        if isinstance(obj, dict):
+            for value in obj.values():
+                leaves(value)
+        elif isinstance(obj, list):
+            for value in obj:
+                leaves(value)
+        elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+            out.append(float(obj))
+
+    leaves(record)
+    runs = record.get('runs') if isinstance(record, dict) else None
+    if isinstance(runs, list):
+        groups = {}
+        for run in runs:
+            for condition, metrics in run.get('metrics', {}).items():
+                for key, value in metrics.items():
+                    if isinstance(value, (int, float)):
+                        groups.setdefault((run['recipe'], condition, key),
+                                          []).append(100 * value)
+        for values in groups.values():
+            mean = sum(values) / len(values)
+            out.append(mean)
+            if len(values) > 1:
+                out.append((sum(
+                    (v - mean)**2 for v in values) / (len(values) - 1))**0.5)
+    for cell in (record.get('inference_round_times_s') or {}).values():
+        medians = [statistics.median(t) for t in cell.values()]
+        out += [a / b for a in medians for b in medians]
+    return out
+
+
+def quoted_numbers(cell):
+    """The decimal figures of a table cell, with their precision."""
+    return [(float(m), len(m.split('.')[1]))
+            for m in re.findall(r'\d+\.\d+', cell)]
+
+
+def readme_results_rows():
+    """(row, figure cells, linked records) of the README's results
+    table."""
+    text = _read(osp.join(ROOT, 'README.md'))
+    section = text.split('\n## Results\n', 1)[1].split('\n## ', 1)[0]
+    lines = [line for line in section.splitlines() if line.startswith('|')]
+    out = []
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip('|').split(' | ')]
+        records = [
+            osp.join(ROOT, t) for t in LINK.findall(cells[-1])
+            if t.endswith('.json')
+        ]
+        out.append((cells[0], cells[2:-1], records))
+    return out
+
+
+def test_readme_results_are_their_records():
+    """Every figure of the README's results table is one its row's JSON
+    record gives (to the precision quoted); a row without a record quotes
+    no figure ("being measured")."""
+    rows = readme_results_rows()
+    assert len(rows) >= 4, rows
+    for name, cells, records in rows:
+        quoted = [q for cell in cells for q in quoted_numbers(cell)]
+        if not records:
+            assert not quoted, f'README results: {name!r} quotes ' \
+                f'{quoted} without a record'
+            continue
+        derived = []
+        for path in records:
+            with open(path, encoding='utf-8') as f:
+                derived += record_numbers(json.load(f))
+        wrong = [
+            value for value, digits in quoted if not any(
+                abs(d - value) <= 0.5 * 10**-digits + 1e-9 for d in derived)
+        ]
+        assert not wrong, (f'README results: {name!r} quotes {wrong}, '
+                           f'which {records} do not give')
+
+
+def test_record_numbers_derive_means_and_ratios():
+    record = dict(
+        runs=[
+            dict(recipe='a', seed=s, metrics=dict(clear={'m': v}))
+            for s, v in enumerate((0.340, 0.325, 0.353))
+        ],
+        inference_round_times_s=dict(
+            cell=dict(x=[6.0, 6.2, 9.0], y=[3.0, 3.1, 2.0])))
+    got = record_numbers(record)
+    assert any(abs(v - 33.93) < 0.01 for v in got)  # mean, percent
+    assert any(abs(v - 1.40) < 0.01 for v in got)  # sample std
+    assert any(abs(v - 6.2 / 3.0) < 1e-9 for v in got)  # medians' ratio
+    assert quoted_numbers('**9.5 / 20.7** (x) 1.00') == [(9.5, 1), (20.7, 1),
+                                                         (1.0, 2)]
