@@ -202,6 +202,28 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'cascade-rcnn_mobilenet-v2_fpn_dcp_1xb2-ft_dawn-fog.py'),
         ('YOLOX-Tiny (scratch)', 'pretrained/yolox_tiny_1xb2_dawn-fog.py'),
     ],
+    # why the revised CBNet's box path and the stock cascade differ on real
+    # fog (the parts set's method on the pretrained trunk): the two recipes
+    # differ there in three parts (neck, RPN, stage IoUs); each row is one
+    # of them with ONE part taken from the other (configs/pretrained/parts/)
+    'realfog_pretrained_parts': [
+        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
+         'ft_dawn-fog.py'),
+        ('Cascade R-CNN +NAS-FPN', 'pretrained/parts/cascade-rcnn_'
+         'mobilenet-v2_nasfpn_1xb2-ft_dawn-fog.py'),
+        ('Cascade R-CNN +CRPN reg 1', 'pretrained/parts/cascade-rcnn_'
+         'mobilenet-v2_fpn-crpn-reg1_1xb2-ft_dawn-fog.py'),
+        ('Cascade R-CNN +IoU .5/.7/.9', 'pretrained/parts/cascade-rcnn_'
+         'mobilenet-v2_fpn-iou579_1xb2-ft_dawn-fog.py'),
+        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
+         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
+        ('CBNet revised -NAS-FPN', 'pretrained/parts/cbnet-revised-box_'
+         'mobilenet-v2_fpn-crpn_1xb2-ft_dawn-fog.py'),
+        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised-box_mobilenet-'
+         'v2_nasfpn-rpn_1xb2-ft_dawn-fog.py'),
+        ('CBNet revised -IoU .5/.7/.9', 'pretrained/parts/cbnet-revised-'
+         'box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft_dawn-fog.py'),
+    ],
     # proposal recall of the three RPN heads
     'rpn': [
         ('CBNet CRPN',
@@ -225,6 +247,7 @@ SET_COLUMNS = {
     'realfog_pretrained': metric_columns('box AP', 'box AP50', 'box AP_s',
                                          'box AP_m', 'box AP_l'),
 }
+SET_COLUMNS['realfog_pretrained_parts'] = SET_COLUMNS['realfog_pretrained']
 
 
 @dataclass
@@ -289,6 +312,7 @@ PRESETS: Dict[str, Preset] = {
 }
 #: The preset a set runs with when ``--preset`` is not given.
 SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
+               'realfog_pretrained_parts': 'realfog_pretrained',
                'coco_street': 'coco_street'}
 
 

@@ -170,3 +170,32 @@ def test_missing_weights_stop_before_any_training(tmp_path, monkeypatch):
         tool.main(['--set', 'realfog_pretrained', '--data-root', fog,
                    '--work-dir', str(tmp_path / 'runs')] + FAST)
     assert not osp.exists(tmp_path / 'runs' / 'Cascade_R-CNN')
+
+
+def test_realfog_pretrained_parts_set_end_to_end(fake_weights, tmp_path):
+    """The swapped-part rows (the two whole recipes are the previous
+    test's) train and score on a VOC folder, each from the fake trunk."""
+    fog = str(tmp_path / 'fog')
+    tiny_fog_folder(fog, num_images=6)
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    whole = dict(rc.RECIPE_SETS['realfog_pretrained'])
+    swapped = [n for n, _ in rc.RECIPE_SETS['realfog_pretrained_parts']
+               if n not in whole]
+    assert len(swapped) == 5
+    runs = str(tmp_path / 'runs')
+    record = tool.main(
+        ['--set', 'realfog_pretrained_parts', '--data-root', fog,
+         '--img-scale', '160', '96', '--work-dir', runs, '--only'] +
+        swapped + FAST + ['--cfg-options'] + TEST_IN_PROCESS)
+    assert [r['recipe'] for r in record['runs']] == swapped
+    assert record['summary']['columns'] == [
+        'box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
+    budget = rc.Budget(iters=2, batch_size=2, warmup_iters=1,
+                       num_workers=0, img_scale=(160, 96))
+    for run in record['runs']:
+        assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0
+        ckpt = torch.load(rc.checkpoint_file(runs, run['recipe'], 0, budget),
+                          map_location='cpu')
+        torch.testing.assert_close(
+            ckpt['state_dict']['backbone.conv1.conv.weight'],
+            fake_weights['conv1.conv.weight'])

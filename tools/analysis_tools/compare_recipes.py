@@ -40,6 +40,11 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             at 640 px on the same trunk, plus YOLOX-Tiny (from scratch)
             and the dark channel prior in front of the Cascade R-CNN;
             box AP, AP50, AP_s/m/l
+  realfog_pretrained_parts  the stock Cascade R-CNN and the revised
+            CBNet's box path of realfog_pretrained, each with ONE of the
+            parts in which they differ (neck, RPN, stage IoUs) taken
+            from the other (configs/pretrained/parts/); the same
+            preset and columns
 
 Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512

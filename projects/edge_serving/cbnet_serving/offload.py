@@ -225,6 +225,7 @@ def offload_curve(local_dir: str,
                   random_seeds: Sequence[int] = (0, 1, 2),
                   classes: Optional[Sequence[str]] = None,
                   metrics: Sequence[str] = ('bbox', 'segm'),
+                  calibrate: bool = False,
                   progress=print) -> Dict:
     """Score always-local, always-server, the haze rule at each
     ``thresholds`` (``min_confidence`` 0; default: the deciles of the
@@ -232,16 +233,36 @@ def offload_curve(local_dir: str,
     (``transmission_thr``, ``min_confidence``), random offloading at the
     same rates, and optionally a live ``--mode auto`` run.
 
+    ``calibrate``: score every row with each model's scores mapped onto
+    the precision they stand for (:mod:`.calibration`, cross-fitted on
+    two halves of the frames), so that one ranking of the two models'
+    detections means the same for both; the record keeps the maps.
+
     Returns ``{'frames', 'conditions', 'rows', 'by_condition'}``; a row
     has ``policy``, ``offload_rate``, ``offloaded`` per condition, the
-    AP keys of :func:`score` and ``seconds`` (mean per frame: the local
-    run's time of a kept frame, the server run's of an offloaded one)."""
+    AP keys of :func:`score` on the whole stream, ``condition_ap`` (the
+    same keys on each condition's frames alone) and ``seconds`` (mean per
+    frame: the local run's time of a kept frame, the server run's of an
+    offloaded one)."""
+    if calibrate and auto_dir is not None:
+        raise ValueError('a live auto run is scored as routed, with its '
+                         'own scores: leave out auto_dir or calibrate')
     local, server = read_run(local_dir), read_run(server_dir)
     frames = check_runs(local, server)
     gt = stream_annotations(ann_file, frames)
     local_cls = _classes(local, 'local', classes)
     server_cls = _classes(server, 'server', classes)
     cond = [split_beta(osp.basename(f))[1] for f in frames]
+    preds = {side: [run['records'][f]['prediction'] for f in frames]
+             for side, run in (('local', local), ('server', server))}
+    calibration = None
+    if calibrate:
+        from .calibration import cross_fitted
+        calibration = {}
+        for side, cls in (('local', local_cls), ('server', server_cls)):
+            progress(f'calibrating the {side} model\'s scores')
+            preds[side], calibration[side] = cross_fitted(
+                preds[side], gt, cls)
     conditions = sorted(set(cond), key=lambda c: -1 if c == 'clear'
                         else float(c))
     t = np.array([local['records'][f]['transmission'] for f in frames])
@@ -249,12 +270,20 @@ def offload_curve(local_dir: str,
         thresholds = sorted(set(np.round(
             np.quantile(t, np.linspace(0.1, 0.9, 9)), 4).tolist()))
 
+    stream = preds
+
+    def subset(keep):
+        sub = dict(gt, images=[gt['images'][i] for i in keep])
+        ids = {img['id'] for img in sub['images']}
+        sub['annotations'] = [a for a in gt['annotations']
+                              if a['image_id'] in ids]
+        return sub
+
     def row(name, offload, preds=None, per_class=None, seconds=None):
         offload = np.asarray(offload, bool)
         if preds is None:
-            preds = [server['records'][f]['prediction'] if o else
-                     local['records'][f]['prediction']
-                     for f, o in zip(frames, offload)]
+            preds = [stream['server'][i] if o else stream['local'][i]
+                     for i, o in enumerate(offload)]
             per_class = [server_cls if o else local_cls for o in offload]
             seconds = [server['records'][f]['seconds'] if o else
                        local['records'][f]['seconds']
@@ -262,8 +291,14 @@ def offload_curve(local_dir: str,
         progress(f'scoring {name} ({offload.mean():.0%} offloaded)')
         by = {c: float(np.mean([o for o, k in zip(offload, cond) if k == c]))
               for c in conditions}
+        per_cond = {}
+        for c in conditions:
+            keep = [i for i, k in enumerate(cond) if k == c]
+            per_cond[c] = score(subset(keep), [preds[i] for i in keep],
+                                [per_class[i] for i in keep], metrics)
         return dict(policy=name, offload_rate=float(offload.mean()),
                     offloaded=by, seconds=float(np.mean(seconds)),
+                    condition_ap=per_cond,
                     **score(gt, preds, per_class, metrics))
 
     n = len(frames)
@@ -293,6 +328,10 @@ def offload_curve(local_dir: str,
         mean['offloaded'] = {c: float(np.mean([r['offloaded'][c]
                                                for r in runs]))
                              for c in conditions}
+        mean['condition_ap'] = {
+            c: {k: float(np.mean([r['condition_ap'][c][k] for r in runs]))
+                for k in runs[0]['condition_ap'][c]}
+            for c in conditions}
         mean['policy'] = (f'random {count}/{n} (mean of '
                           f'{len(runs)} seeds)')
         mean['std'] = {k: float(np.std([r[k] for r in runs]))
@@ -319,17 +358,13 @@ def offload_curve(local_dir: str,
     by_condition = {}
     for c in conditions:
         keep = [i for i, k in enumerate(cond) if k == c]
-        sub = dict(gt, images=[gt['images'][i] for i in keep])
-        ids = {img['id'] for img in sub['images']}
-        sub['annotations'] = [a for a in gt['annotations']
-                              if a['image_id'] in ids]
         by_condition[c] = {
-            side: score(sub, [run['records'][frames[i]]['prediction']
-                              for i in keep], cls, metrics)
-            for side, run, cls in (('local', local, local_cls),
-                                   ('server', server, server_cls))}
+            side: score(subset(keep), [stream[side][i] for i in keep], cls,
+                        metrics)
+            for side, cls in (('local', local_cls), ('server', server_cls))}
     return dict(frames=n, conditions=conditions, rows=rows,
-                by_condition=by_condition,
+                by_condition=by_condition, calibrated=bool(calibrate),
+                calibration=calibration,
                 transmission={c: float(np.mean(
                     [x for x, k in zip(t, cond) if k == c]))
                     for c in conditions})
@@ -342,8 +377,12 @@ def to_markdown(result: Dict) -> str:
     keys = [(k, h) for k, h in COLUMNS
             if k in ('policy', 'offload_rate', 'seconds')
             or k in result['rows'][0]]
+    # box AP on each condition's frames alone (records before the
+    # per-condition rows have none)
+    by_cond = all('condition_ap' in r for r in result['rows'])
     head = [h for _, h in keys[:2]] + [f'offloaded {c}' for c in conds] + \
-        [h for _, h in keys[2:]]
+        [h for _, h in keys[2:]] + \
+        ([f'box AP {c}' for c in conds] if by_cond else [])
     rows = []
     for r in result['rows']:
         cells = [r['policy'], f"{r['offload_rate']:.0%}"]
@@ -353,8 +392,13 @@ def to_markdown(result: Dict) -> str:
             if k in r.get('std', {}):
                 v += f" +- {r['std'][k]:.1f}"
             cells.append(v)
+        if by_cond:
+            cells += [f"{r['condition_ap'][c]['bbox_mAP']:.1f}"
+                      for c in conds]
         rows.append(cells)
-    lines = markdown_table(head, rows) + ['']
+    lines = (['Scores calibrated per model (cross-fitted isotonic '
+              'score -> precision maps).', ''] if result.get('calibrated')
+             else []) + markdown_table(head, rows) + ['']
     rows = []
     for c in conds:
         cells = [c, f"{result['transmission'][c]:.3f}"]

@@ -10,7 +10,7 @@ Usage::
     python projects/edge_serving/tools/offload_eval.py OUT/local OUT/server \
         --ann ANN_JSON [--auto OUT/auto] [--thresholds 0.5 0.6 0.7] \
         [--router-cfg projects/edge_serving/tools/edge_router.py] \
-        [--out-dir OUT]
+        [--calibrate] [--out-dir OUT]
 
 ``ANN_JSON`` is the COCO instances file of the clear images; foggy frames
 (``*_leftImg8bit_foggy_beta_{b}.png``) take their clear twin's annotations.
@@ -38,6 +38,11 @@ def parse_args(argv=None):
                    '"shipped" row')
     p.add_argument('--boxes-only', action='store_true',
                    help='score boxes only (models or data without masks)')
+    p.add_argument('--calibrate', action='store_true',
+                   help="map each model's scores onto the precision they "
+                   'stand for (isotonic, per class, cross-fitted on two '
+                   'halves of the frames) before the two are ranked '
+                   'together; not with --auto')
     p.add_argument('--out-dir', help='default: the local folder')
     return p.parse_args(argv)
 
@@ -55,7 +60,8 @@ def main(argv=None):
         policy=dict(transmission_thr=router.transmission_thr,
                     min_confidence=router.min_confidence),
         auto_dir=args.auto,
-        metrics=('bbox', ) if args.boxes_only else ('bbox', 'segm'))
+        metrics=('bbox', ) if args.boxes_only else ('bbox', 'segm'),
+        calibrate=args.calibrate)
     paths = write(result, args.out_dir or args.local)
     print(to_markdown(result))
     print(f"written: {paths['json']}, {paths['markdown']}")
