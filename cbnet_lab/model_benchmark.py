@@ -44,6 +44,8 @@ class Bench:
         self.frame = None
         if getattr(args, 'image', None):
             import mmcv
+            if not osp.isfile(args.image):
+                raise FileNotFoundError(f'--image {args.image}: no such file')
             photo = mmcv.imread(args.image)
             if photo is None:
                 raise ValueError(f'--image {args.image}: not readable as '
