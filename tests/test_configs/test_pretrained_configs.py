@@ -4,6 +4,7 @@ box-only on real fog (DAWN), plus YOLOX-Tiny, the dark channel prior in
 front of the stock cascade and the light edge detector (issue 45); every
 one builds with no weights file."""
 import glob
+import os
 import os.path as osp
 
 import pytest
@@ -165,8 +166,7 @@ def fake_trunk(tmp_path, monkeypatch):
     torch.manual_seed(3)
     state = MobileNetV2().state_dict()
     path = pt.pretrained_path('mobilenet_v2')
-    osp.isdir(osp.dirname(path)) or __import__('os').makedirs(
-        osp.dirname(path))
+    os.makedirs(osp.dirname(path))
     torch.save(dict(state_dict=state), path)
     return state
 
