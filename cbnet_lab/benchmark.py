@@ -15,6 +15,7 @@ import threading
 import time
 from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
+import numpy as np
 import torch
 from mmengine.config import Config, ConfigDict
 from torch import nn
@@ -138,8 +139,9 @@ def make_batch(batch_size: int = 1,
                num_items: int = 5,
                num_classes: int = 8,
                with_mask: bool = True,
-               seed: int = 0) -> dict:
-    """Synthetic un-preprocessed batch (``mmdet.testing.demo_mm_inputs``).
+               seed: int = 0,
+               image: Optional[np.ndarray] = None) -> dict:
+    """Un-preprocessed batch (``mmdet.testing.demo_mm_inputs``).
 
     The same seed gives the same images and ground truth, so every model is
     measured on the same inputs (each through its own data preprocessor).
@@ -152,19 +154,106 @@ def make_batch(batch_size: int = 1,
         with_mask (bool): Add bitmap instance masks.
         seed (int): Seed of the torch RNG (the images use numpy's fixed
             seed inside ``demo_mm_inputs``).
+        image (np.ndarray, optional): A photo (``H x W x 3`` uint8 BGR,
+            as MMCV reads it) in place of the random images, resized to
+            ``size`` (bilinear, as MMDet's ``Resize``); the ground truth
+            stays synthetic.
 
     Returns:
         dict: ``inputs`` (list of ``Tensor[3, H, W]`` uint8) and
         ``data_samples`` (list of ``DetDataSample``).
     """
     from mmdet.testing import demo_mm_inputs
+    photo = None if image is None else torch.from_numpy(
+        np.ascontiguousarray(resize_image(image, size).transpose(2, 0, 1)))
     torch.manual_seed(seed)
-    return demo_mm_inputs(
+    batch = demo_mm_inputs(
         batch_size=batch_size,
         image_shapes=[(3, *size)] * batch_size,
         num_items=[num_items] * batch_size,
         num_classes=num_classes,
         with_mask=with_mask)
+    if photo is not None:
+        batch['inputs'] = [photo.clone() for _ in range(batch_size)]
+    return batch
+
+
+def resize_image(image: np.ndarray, size: Tuple[int, int]) -> np.ndarray:
+    """A ``H x W x 3`` uint8 image resized to ``size`` (height, width).
+
+    Raises:
+        ValueError: ``image`` is not ``H x W x 3`` uint8, or ``size`` is
+            not two positive integers.
+    """
+    import mmcv
+    if not (isinstance(image, np.ndarray) and image.ndim == 3 and
+            image.shape[2] == 3 and image.dtype == np.uint8):
+        raise ValueError('image must be an H x W x 3 uint8 array, got '
+                         f'{getattr(image, "shape", type(image))}')
+    h, w = (int(v) for v in size)
+    if h < 1 or w < 1:
+        raise ValueError(f'size must be (height, width) > 0, got {size}')
+    if image.shape[:2] == (h, w):
+        return image
+    return mmcv.imresize(image, (w, h), interpolation='bilinear')
+
+
+def pipeline_input_size(cfg: Config, size: Tuple[int, int]
+                        ) -> Tuple[int, int]:
+    """The size an image of ``size`` has after ``cfg``'s test pipeline.
+
+    What MMDet's inference API (``DetInferencer``, the serving code) feeds
+    the model for a camera frame of that size: the test pipeline's
+    ``Resize`` (its ``scale`` with ``keep_ratio`` as MMDet computes it, or
+    its fixed ``scale`` without; a ``scale_factor`` multiplies); before the
+    data preprocessor's padding. A pipeline without ``Resize`` keeps the
+    size.
+
+    Args:
+        cfg (Config): A detector config with a ``test_dataloader`` (or
+            ``test_pipeline``).
+        size (tuple[int, int]): Frame height and width, pixels.
+
+    Returns:
+        tuple[int, int]: Height and width the model sees.
+
+    Raises:
+        ValueError: The config has no test pipeline, or a ``Resize`` that
+            this function cannot follow (several, or another type of
+            resize whose output it does not know).
+    """
+    from mmcv.image import rescale_size
+    loader = cfg.get('test_dataloader') or {}
+    pipeline = (loader.get('dataset') or {}).get('pipeline') or \
+        cfg.get('test_pipeline')
+    if not pipeline:
+        raise ValueError(f'{cfg.filename}: no test pipeline '
+                         '(test_dataloader.dataset.pipeline) to read the '
+                         'input size from')
+    resizes = [t for t in pipeline if 'Resize' in str(t.get('type', ''))]
+    if not resizes:
+        return tuple(size)
+    if len(resizes) > 1 or resizes[0]['type'] not in ('Resize',
+                                                      'mmdet.Resize'):
+        raise ValueError(
+            f'{cfg.filename}: the test pipeline resizes with '
+            f'{[t["type"] for t in resizes]}; only one MMDet Resize can be '
+            'followed')
+    t = resizes[0]
+    h, w = size
+    if t.get('scale') is not None:
+        scale = t['scale']
+        scale = (scale, scale) if isinstance(scale, int) else tuple(scale)
+        if t.get('keep_ratio', False):
+            w, h = rescale_size((w, h), scale)
+        else:
+            w, h = scale
+    else:
+        factor = t['scale_factor']
+        fw, fh = (factor, factor) if isinstance(factor, (int, float)) \
+            else factor
+        w, h = int(w * fw + 0.5), int(h * fh + 0.5)
+    return int(h), int(w)
 
 
 def realistic_proposals(size: Tuple[int, int],
@@ -401,20 +490,24 @@ def summarize(times: Sequence[float]) -> Dict[str, float]:
         times (Sequence[float]): Durations, seconds.
 
     Returns:
-        dict: ``median``, ``min``, ``max`` and ``iqr`` (interquartile
-        range; 0 with fewer than 2 values), seconds.
+        dict: ``median``, ``min``, ``max``, ``iqr`` (interquartile
+        range; 0 with fewer than 2 values) and ``p95`` (95th percentile,
+        linear between the sorted values as ``numpy.percentile``; with
+        fewer than 20 values it leans on the slowest ones), seconds.
     """
     if not times:
         raise ValueError('no durations to summarise')
-    iqr = 0.0
+    iqr, p95 = 0.0, times[0]
     if len(times) > 1:
         q = statistics.quantiles(times, n=4, method='inclusive')
         iqr = q[2] - q[0]
+        p95 = statistics.quantiles(times, n=20, method='inclusive')[18]
     return dict(
         median=statistics.median(times),
         min=min(times),
         max=max(times),
-        iqr=iqr)
+        iqr=iqr,
+        p95=p95)
 
 
 def _status_mib(field: str) -> float:

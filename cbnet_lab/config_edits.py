@@ -44,7 +44,9 @@ class Budget:
         num_workers (int): Data-loading workers.
         img_scale (tuple[int, int], optional): ``(w, h)`` given to every
             ``Resize`` of the training and test pipelines (the data
-            preset's image size); None keeps each config's.
+            preset's image size); None keeps each config's. A config whose
+            input size is part of the model (the edge model) sets a
+            top-level ``fixed_img_scale`` and keeps it (:func:`budget_cfg`).
     """
     iters: int = 120
     batch_size: int = 4
@@ -190,7 +192,14 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     cfg.randomness = dict(seed=seed)
     cfg.work_dir = work_dir
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
-    if budget.img_scale is not None:
+    # a config that fixes its own input size (``fixed_img_scale``, e.g. the
+    # edge model of configs/pretrained/) keeps it under any preset; it is
+    # applied to every Resize, so a pipeline that disagrees with it cannot
+    # slip through
+    fixed = cfg.get('fixed_img_scale')
+    if fixed is not None:
+        set_img_scale(cfg, fixed)
+    elif budget.img_scale is not None:
         set_img_scale(cfg, budget.img_scale)
     if cfg_options:
         cfg.merge_from_dict(cfg_options)

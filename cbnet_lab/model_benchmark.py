@@ -36,6 +36,21 @@ class Bench:
         self.B, self.torch, self.args = B, torch, args
         self.device = args.device
         self.models, self.optims = {}, {}
+        # the input each model sees for a --size input (frame): the same,
+        # or (--config-resize) what its test pipeline's Resize makes of it
+        self.sizes = {}
+        # --image: the photo as a --size frame (the frames of all models
+        # are this one, resized as their pipelines would)
+        self.frame = None
+        if getattr(args, 'image', None):
+            import mmcv
+            if not osp.isfile(args.image):
+                raise FileNotFoundError(f'--image {args.image}: no such file')
+            photo = mmcv.imread(args.image)
+            if photo is None:
+                raise ValueError(f'--image {args.image}: not readable as '
+                                 'an image')
+            self.frame = B.resize_image(photo, tuple(args.size))
         from mmengine.config import DictAction
         for name, path in args.configs.items():
             cfg = B.load_benchmark_cfg(path)
@@ -44,7 +59,18 @@ class Bench:
                 cfg.merge_from_dict({
                     k: DictAction._parse_iterable(v)
                     for k, v in args.overrides[name].items()})
+            self.sizes[name] = (
+                B.pipeline_input_size(cfg, tuple(args.size))
+                if getattr(args, 'config_resize', False)
+                else tuple(args.size))
             model = B.build_detector(cfg).to(self.device)
+            checkpoint = getattr(args, 'checkpoints', {}).get(name)
+            if checkpoint:
+                # trained weights (--checkpoint): detections and proposals
+                # as the deployed model makes them; every key must match
+                from mmengine.runner import load_checkpoint
+                load_checkpoint(model, checkpoint, map_location=self.device,
+                                strict=True, logger='silent')
             self.models[name] = model
             self.optims[name] = cfg.get('optim_wrapper')
             print(f'built {name}', file=sys.stderr)
@@ -54,12 +80,15 @@ class Bench:
         return torch.autocast('cuda', dtype=torch.float16,
                               enabled=self.args.amp)
 
-    def batch(self, name, size, batch_size=1, num_items=None):
+    def batch(self, name, size=None, batch_size=1, num_items=None):
+        """Inputs of ``name``: ``size`` (height, width), or by default the
+        size the model sees for the run's ``--size`` (:attr:`sizes`); the
+        ``--image`` photo resized to it, else random images."""
         model = self.models[name]
         return self.B.make_batch(
-            batch_size, tuple(size),
+            batch_size, tuple(size or self.sizes[name]),
             num_items=num_items or self.args.num_items,
-            with_mask=self.B.has_mask_head(model))
+            with_mask=self.B.has_mask_head(model), image=self.frame)
 
     def predict_call(self, name, raw):
         model, torch = self.models[name], self.torch
@@ -102,20 +131,39 @@ class Bench:
         works, see ``PeakMemory``, so it is never timed).
         ``on_round(out)`` after every timed round: a run cut short (a time
         limit) keeps the rounds it finished.
+
+        Besides the wall time, each timed call's CPU time of this process
+        (``time.process_time``) is kept (``cpu_times``): on a shared CPU
+        the wall time includes the time the scheduler gave other
+        processes, the CPU time does not, so with one torch thread it
+        estimates the latency on an idle core (caches and memory
+        bandwidth stay shared).
         """
+        import time
         B = self.B
-        out = {n: dict(times=[], peak_mib=[]) for n in calls}
+        out = {n: dict(times=[], cpu_times=[], peak_mib=[]) for n in calls}
+        cpu = {n: [] for n in calls}
+
+        def cpu_timed(name, fn):
+            def call():
+                start = time.process_time()
+                fn()
+                cpu[name].append(time.process_time() - start)
+            return call
 
         def round_done(i, times):
             for name in out:
                 out[name]['times'] = times[name]
+                # the warm-up rounds' calls came first
+                out[name]['cpu_times'] = cpu[name][warmup:]
             print(f'round {i + 1}/{repeats}: ' + ', '.join(
                 f'{n} {v["times"][-1]:.3f} s' for n, v in out.items()),
                   file=sys.stderr)
             if on_round is not None:
                 on_round(out)
 
-        B.time_alternately(calls, repeats, warmup, self.device,
+        B.time_alternately({n: cpu_timed(n, fn) for n, fn in calls.items()},
+                           repeats, warmup, self.device,
                            on_round=round_done)
         for name, fn in calls.items():
             with B.PeakMemory(self.device) as mem:
@@ -136,12 +184,15 @@ def run(args, checkpoint=lambda results, scaling: None, root=None):
     time limit) keeps what it measured. Config paths are recorded relative
     to ``root`` (as given without it)."""
     bench = Bench(args)
-    B, names, size = bench.B, list(bench.models), args.size
+    B, names = bench.B, list(bench.models)
     results = {
         n: dict(config=osp.relpath(args.configs[n], root)
-                if root else args.configs[n])
+                if root else args.configs[n],
+                input_size=list(bench.sizes[n]))
         for n in names
     }
+    for n, path in getattr(args, 'checkpoints', {}).items():
+        results[n]['checkpoint'] = path
     for n in names:
         model = bench.models[n]
         results[n]['params_m'] = B.count_params(model) / 1e6
@@ -151,21 +202,25 @@ def run(args, checkpoint=lambda results, scaling: None, root=None):
             results[n]['test_proposals'] = B.FixedProposals(model).num
         if not args.no_flops:
             model.eval()
-            raw = bench.batch(n, size)
+            raw = bench.batch(n)
             results[n]['gflops'] = B.count_flops(
                 model, B.preprocess(model, raw, False))
         print(f'counted {n}', file=sys.stderr)
     for bs in [] if args.no_infer else args.batch_sizes:
-        calls = {n: bench.predict_call(n, bench.batch(n, size, bs))
+        calls = {n: bench.predict_call(n, bench.batch(n, batch_size=bs))
                  for n in names}
 
         def keep(meas, bs=bs):
             for n in names:
                 s = B.summarize(meas[n]['times'])
+                cpu = B.summarize(meas[n]['cpu_times'])
                 results[n].setdefault('inference', {})[str(bs)] = dict(
                     seconds=s, images_per_s=bs / s['median'],
+                    cpu_seconds=cpu,
+                    images_per_cpu_s=bs / cpu['median']
+                    if cpu['median'] > 0 else None,
                     peak_mib=_peak(meas[n]['peak_mib']),
-                    times=meas[n]['times'])
+                    times=meas[n]['times'], cpu_times=meas[n]['cpu_times'])
             checkpoint(results, dict(sizes={}, items={}))
 
         keep(bench.measure(calls, args.repeats, args.warmup, on_round=keep))
@@ -179,7 +234,7 @@ def run(args, checkpoint=lambda results, scaling: None, root=None):
         calls, wrappers = {}, {}
         for n in names:
             calls[n], wrappers[n] = bench.train_call(
-                n, bench.batch(n, size, args.train_batch_size))
+                n, bench.batch(n, batch_size=args.train_batch_size))
 
         def keep_train(meas):
             for n in names:
@@ -213,7 +268,7 @@ def run(args, checkpoint=lambda results, scaling: None, root=None):
             calls = {}
             for n in args.scale_models:
                 calls[n], _ = bench.train_call(
-                    n, bench.batch(n, size, args.train_batch_size,
+                    n, bench.batch(n, batch_size=args.train_batch_size,
                                    num_items=k))
             meas = bench.measure(calls, args.repeats, args.warmup)
             for n in args.scale_models:
@@ -248,7 +303,11 @@ def peak_memory_method(device):
 
 def markdown(meta, results, scaling):
     """The tables of ``benchmark.md``."""
-    ref = results.get(REFERENCE)
+    # the model of the ratio columns (--reference); Swin-S, the heaviest
+    # baseline, by default
+    ref_name = meta.get('reference', REFERENCE)
+    ref = results.get(ref_name)
+    ref_label = 'Swin-S' if ref_name == REFERENCE else ref_name
     h, w = meta['size']
     mach = meta['machine']
 
@@ -275,6 +334,16 @@ def markdown(meta, results, scaling):
         f'{mach["mmcv"]}, mmdet {mach["mmdet"]}; AMP {mach["amp"]}; '
         f'cbnet_mmdet from {mach.get("cbnet_mmdet", "-")}',
         f'- peak memory: {meta.get("peak_memory", "-")}',
+    ] + ([
+        f'- input: {h}x{w} frames, each resized as its config\'s test '
+        'pipeline resizes (the `input` column: what the model saw, before '
+        'padding)'
+    ] if meta.get('config_resize') else []) + ([
+        f'- image: `{meta["image"]}` resized to {h}x{w} (synthetic ground '
+        'truth for training)'
+    ] if meta.get('image') else []) + [
+        f'- {name}: checkpoint `{r["checkpoint"]}`'
+        for name, r in results.items() if r.get('checkpoint')
     ] + [
         f'- {name}: ' + ', '.join(f'`{k}={v}`' for k, v in opts.items())
         for name, opts in meta.get('overrides', {}).items()
@@ -299,31 +368,46 @@ def markdown(meta, results, scaling):
         a, b = get(r), get(ref)
         return a / b if a is not None and b else None
 
+    frames = bool(meta.get('config_resize'))
     header = (['model', 'params (M)', 'GFLOPs infer / backbone+neck',
-               'latency b1 (s, median [IQR])'] +
+               'latency b1 (s, median / p95 [IQR])'] +
               [f'img/s b{b}' for b in meta['batch_sizes']] +
               [f'train step b{meta.get("train_batch_size", 1)} (s)',
-               'peak mem infer / train (MiB)', 'latency / Swin-S',
-               'train / Swin-S', 'params / Swin-S'])
+               'peak mem infer / train (MiB)', f'latency / {ref_label}',
+               f'train / {ref_label}', f'params / {ref_label}'] +
+              (['CPU time b1 (s, median / p95)', 'img/s b1 by CPU time',
+                'input (HxW)', 'weights (MiB)'] if frames else []))
     rows = []
     for name, r in results.items():
         # a --no-infer run, or one stopped before its first timed round
         inf = r.get('inference', {})
         lat = inf.get('1', next(iter(inf.values()), {})).get('seconds', {})
+        cpu = inf.get('1', {}).get('cpu_seconds', {})
         fl = r.get('gflops', {})
         tr = r.get('train_step', {})
         rows.append(
             [name, f'{r["params_m"]:.1f}',
              f'{_f(fl.get("predict"), "{:.1f}")} / '
              f'{_f(fl.get("features"), "{:.1f}")}',
-             f'{_f(lat.get("median"))} [{_f(lat.get("iqr"))}]'] +
+             f'{_f(lat.get("median"))} / {_f(lat.get("p95"))} '
+             f'[{_f(lat.get("iqr"))}]'] +
             [_f(inf.get(str(b), {}).get('images_per_s'), '{:.2f}')
              for b in meta['batch_sizes']] +
             [_f(tr.get('seconds', {}).get('median')),
              f'{_f(inf.get("1", {}).get("peak_mib"), "{:.0f}")} / '
              f'{_f(tr.get("peak_mib"), "{:.0f}")}',
              _f(ratio(r, 'lat'), '{:.2f}'), _f(ratio(r, 'train'), '{:.2f}'),
-             _f(ratio(r, 'params'), '{:.2f}')])
+             _f(ratio(r, 'params'), '{:.2f}')] +
+            ([f'{_f(cpu.get("median"))} / {_f(cpu.get("p95"))}',
+              _f(inf.get('1', {}).get('images_per_cpu_s'), '{:.2f}'),
+              'x'.join(map(str, r.get('input_size', meta['size']))),
+              _f(r.get('weights_mib'), '{:.0f}')] if frames else []))
+    if not any('train_step' in r for r in results.values()):
+        # an inference-only run (--no-train): no training columns
+        keep = [i for i, h in enumerate(header)
+                if not h.startswith('train ')]
+        header = [header[i] for i in keep]
+        rows = [[row[i] for i in keep] for row in rows]
     # a scaling-only run (--no-infer --no-train) has no row to show here
     if any('inference' in r or 'train_step' in r for r in results.values()):
         lines += markdown_table(header, rows)

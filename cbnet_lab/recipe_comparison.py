@@ -188,7 +188,8 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     # issue 42, real fog on the pretrained trunk (DAWN fog + haze at 640
     # px): the same recipes box-only, YOLOX-Tiny (from scratch: no weights
     # for its trunk here) and dehaze-then-detect (the dark channel prior)
-    # in front of the stock cascade; the first two rows are the question
+    # in front of the stock cascade; the first two rows are the question.
+    # Rows are only ever appended (runs are keyed on their names)
     'realfog_pretrained': [
         ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
          'ft_dawn-fog.py'),
@@ -201,6 +202,13 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('DCP + Cascade R-CNN', '../projects/peer_dehaze/configs/pretrained/'
          'cascade-rcnn_mobilenet-v2_fpn_dcp_1xb2-ft_dawn-fog.py'),
         ('YOLOX-Tiny (scratch)', 'pretrained/yolox_tiny_1xb2_dawn-fog.py'),
+        # issue 45, the edge model: a light FCOS on the same trunk at its
+        # own 320 px (`fixed_img_scale`: the preset's 640 px does not
+        # apply), and the same detector at 640 px (what the halving costs)
+        ('Edge FCOS-lite, 320 px', 'pretrained/fcos-lite_mobilenet-v2_fpn_'
+         '1xb2-ft_dawn-fog-320.py'),
+        ('Edge FCOS-lite, 640 px', 'pretrained/fcos-lite_mobilenet-v2_fpn_'
+         '1xb2-ft_dawn-fog.py'),
     ],
     # why the revised CBNet's box path and the stock cascade differ on real
     # fog (the parts set's method on the pretrained trunk): the two recipes

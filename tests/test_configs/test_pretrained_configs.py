@@ -1,8 +1,10 @@
 """configs/pretrained (issue 42): four recipes on one ImageNet MobileNetV2
 at equal widths, data and budget, each on real masks (COCO street) and
-box-only on real fog (DAWN), plus YOLOX-Tiny and the dark channel prior in
-front of the stock cascade; every one builds with no weights file."""
+box-only on real fog (DAWN), plus YOLOX-Tiny, the dark channel prior in
+front of the stock cascade and the light edge detector (issue 45); every
+one builds with no weights file."""
 import glob
+import os
 import os.path as osp
 
 import pytest
@@ -32,7 +34,7 @@ def empty_cache(tmp_path, monkeypatch):
 def test_every_config_is_in_a_set():
     assert sorted(map(osp.normpath, list(STREET.values()) +
                       list(FOG.values()))) == SHIPPED
-    assert len(STREET) == 4 and len(FOG) == 6
+    assert len(STREET) == 4 and len(FOG) == 8
 
 
 @pytest.mark.parametrize('path', SHIPPED, ids=osp.basename)
@@ -67,7 +69,9 @@ def _trunk_and_widths(cfg):
 @pytest.mark.parametrize('recipes', [STREET, FOG], ids=['street', 'fog'])
 def test_equal_trunk_widths_optimiser_and_data(recipes):
     cfgs = {n: Config.fromfile(p) for n, p in recipes.items()}
-    detectors = {n: c for n, c in cfgs.items() if c.model.type != 'YOLOX'}
+    # two-stage recipes (YOLOX and the edge model have no RoI head; the
+    # edge model's trunk and data are checked in test_edge_model_*)
+    detectors = {n: c for n, c in cfgs.items() if 'roi_head' in c.model}
     first = _trunk_and_widths(next(iter(detectors.values())))
     backbone, width, in_channels, lr, keys = first[:5]
     assert backbone.type == 'MobileNetV2' and backbone.frozen_stages == 1
@@ -80,7 +84,8 @@ def test_equal_trunk_widths_optimiser_and_data(recipes):
         # the ImageNet normalisation the weights were trained with, RGB
         assert pre.mean == [123.675, 116.28, 103.53] and pre.bgr_to_rgb
     data = {n: (c.train_dataloader, c.test_dataloader, c.test_evaluator,
-                c.test_condition) for n, c in cfgs.items()}
+                c.test_condition) for n, c in cfgs.items()
+            if 'fixed_img_scale' not in c}
     assert len({repr(d) for d in data.values()}) == 1
 
 
@@ -148,3 +153,107 @@ def test_data_of_the_two_sets():
     for name in ('coco_street', 'realfog_pretrained'):
         preset = rc.PRESETS[rc.SET_PRESETS[name]]
         assert preset.img_scale == (640, 480) and preset.batch_size == 2
+
+
+EDGE, EDGE_640 = FOG['Edge FCOS-lite, 320 px'], FOG['Edge FCOS-lite, 640 px']
+
+
+@pytest.fixture
+def fake_trunk(tmp_path, monkeypatch):
+    """A seeded MobileNetV2 state dict saved where the configs look."""
+    from mmdet.models.backbones import MobileNetV2
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
+    torch.manual_seed(3)
+    state = MobileNetV2().state_dict()
+    path = pt.pretrained_path('mobilenet_v2')
+    os.makedirs(osp.dirname(path))
+    torch.save(dict(state_dict=state), path)
+    return state
+
+
+def test_edge_model_loads_the_trunk_and_fine_tunes_it_as_the_others(
+        fake_trunk):
+    from mmengine.optim import build_optim_wrapper
+    cfg = Config.fromfile(EDGE)
+    stock = Config.fromfile(FOG['Cascade R-CNN'])
+    # the same trunk, fine-tuning and data preprocessor as the recipes
+    assert cfg.model.backbone == stock.model.backbone
+    assert cfg.model.data_preprocessor == stock.model.data_preprocessor
+    assert cfg.model.type == 'FCOS' and cfg.model.bbox_head.num_classes == 8
+    assert cfg.model.bbox_head.strides == [8, 16, 32]
+    init_default_scope('mmdet')
+    model = MODELS.build(cfg.model)
+    # the converted trunk's keys are exactly the backbone's (strict load)
+    model.backbone.load_state_dict(fake_trunk, strict=True)
+    model = MODELS.build(cfg.model)
+    model.init_weights()  # through the config's Pretrained init
+    for key, value in fake_trunk.items():
+        torch.testing.assert_close(model.backbone.state_dict()[key], value)
+    model.train()
+    frozen = [p.requires_grad for p in model.backbone.conv1.parameters()]
+    frozen += [p.requires_grad for p in model.backbone.layer1.parameters()]
+    assert frozen and not any(frozen)
+    assert all(not m.training for m in model.backbone.modules()
+               if isinstance(m, torch.nn.BatchNorm2d))
+    wrapper = build_optim_wrapper(model, cfg.optim_wrapper)
+    lrs = {}
+    for group in wrapper.optimizer.param_groups:
+        for p in group['params']:
+            lrs[id(p)] = group['lr']
+    trunk = {lrs[id(p)] for p in model.backbone.layer7.parameters()}
+    head = {lrs[id(p)] for p in model.bbox_head.parameters()}
+    neck = {lrs[id(p)] for p in model.neck.parameters()}
+    assert len(trunk) == 1 and trunk.pop() == pytest.approx(2e-5)
+    assert head == neck == {2e-4}
+
+
+def test_edge_model_trains_and_predicts_on_a_tiny_batch():
+    from mmdet.testing import demo_mm_inputs
+    cfg = Config.fromfile(EDGE)
+    init_default_scope('mmdet')
+    torch.manual_seed(0)
+    model = MODELS.build(cfg.model)
+    data = model.data_preprocessor(demo_mm_inputs(
+        2, [(3, 90, 160)] * 2, num_items=[3, 2], num_classes=8,
+        with_mask=False), True)
+    model.train()
+    losses = model(**data, mode='loss')
+    assert set(losses) == {'loss_cls', 'loss_bbox', 'loss_centerness'}
+    loss, _ = model.parse_losses(losses)
+    assert torch.isfinite(loss) and loss > 0
+    loss.backward()
+    assert all(p.grad is None for p in model.backbone.layer1.parameters())
+    assert model.backbone.layer2[0].expand_conv.conv.weight.grad is not None
+    assert model.bbox_head.conv_cls.weight.grad.abs().sum() > 0
+    model.eval()
+    data = model.data_preprocessor(demo_mm_inputs(
+        1, [(3, 90, 160)], num_items=[1], num_classes=8,
+        with_mask=False), False)
+    with torch.no_grad():
+        out = model(**data, mode='predict')[0].pred_instances
+    assert out.bboxes.shape[1] == 4 and len(out) <= 100
+    assert len(out) == 0 or int(out.labels.max()) < 8
+
+
+def test_edge_model_keeps_its_input_size_under_the_preset(tmp_path):
+    from cbnet_lab import config_edits as ce
+    preset = rc.PRESETS['realfog_pretrained']
+    budget = ce.Budget(iters=2, batch_size=2, num_workers=0,
+                       img_scale=preset.img_scale)
+    sizes = {}
+    for path in (EDGE, EDGE_640):
+        cfg = ce.budget_cfg(path, budget, seed=0, data_root='/d',
+                            work_dir=str(tmp_path))
+        sizes[osp.basename(path)] = {
+            tuple(t.scale) for loader in (cfg.train_dataloader,
+                                          cfg.test_dataloader)
+            for t in loader.dataset.pipeline if t.type == 'Resize'}
+    assert sizes == {osp.basename(EDGE): {(320, 240)},
+                     osp.basename(EDGE_640): {(640, 480)}}
+    # apart from the size, the data are the other recipes'
+    edge, other = Config.fromfile(EDGE), Config.fromfile(EDGE_640)
+    for key in ('train_dataloader', 'test_dataloader'):
+        pipe = [dict(t, scale=(640, 480)) if t.type == 'Resize' else t
+                for t in edge[key].dataset.pipeline]
+        assert pipe == other[key].dataset.pipeline
+    assert edge.test_evaluator == other.test_evaluator

@@ -146,3 +146,20 @@ def test_a_recipes_own_load_from_is_kept_until_the_run_resumes(tmp_path):
                         cfg_options={'load_from': init})
     assert cfg.load_from == osp.join(run_dir, 'iter_3.pth')
     assert cfg.resume is True
+
+
+def test_a_config_with_fixed_img_scale_keeps_it(tmp_path):
+    """The edge model's input size is part of the model: a config with a
+    top-level ``fixed_img_scale`` keeps it under a preset's size, and a
+    pipeline that disagrees with it is brought in line."""
+    recipe = osp.join(ROOT, 'configs', 'demo',
+                      'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+    fixed = tmp_path / 'fixed.py'
+    fixed.write_text(f'_base_ = {recipe!r}\nfixed_img_scale = (96, 48)\n')
+    budget = ce.Budget(iters=2, img_scale=(512, 256))
+    cfg = ce.budget_cfg(str(fixed), budget, seed=0, data_root='/d',
+                        work_dir=str(tmp_path))
+    assert set(resizes(cfg)) == {(96, 48)}
+    plain = ce.budget_cfg(recipe, budget, seed=0, data_root='/d',
+                          work_dir=str(tmp_path))
+    assert set(resizes(plain)) == {(512, 256)}

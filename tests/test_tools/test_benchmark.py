@@ -37,8 +37,14 @@ def test_strip_pretrained_any_depth():
 
 def test_summarize_matches_statistics():
     s = summarize([4.0, 1.0, 3.0, 2.0, 5.0])
-    assert s == dict(median=3.0, min=1.0, max=5.0, iqr=2.0)
+    assert s == dict(median=3.0, min=1.0, max=5.0, iqr=2.0,
+                     p95=pytest.approx(4.8))
+    times = [0.3, 7.5, 1.0, 2.0, 2.5, 9.0, 0.1, 4.0, 3.3]
+    import numpy as np
+    assert summarize(times)['p95'] == pytest.approx(
+        np.percentile(times, 95))
     assert summarize([2.0])['iqr'] == 0.0
+    assert summarize([2.0])['p95'] == 2.0
     with pytest.raises(ValueError, match='no durations'):
         summarize([])
 
@@ -405,3 +411,182 @@ def test_scaling_only_run_prints_no_empty_model_table(tmp_path):
     text = (tmp_path / 'benchmark.md').read_text()
     assert 'params (M)' not in text
     assert '| yolox_s | 32x32 |' in text
+
+
+# --suite edge (issue 45): the edge model next to the server models on
+# camera frames each model gets resized as its test pipeline resizes them
+
+EDGE = 'edge_fcos-lite_320'
+SERVER = 'server_cascade-rcnn'
+
+
+def test_pipeline_input_size_follows_the_test_resize():
+    from mmengine.config import Config
+
+    from cbnet_lab.benchmark import pipeline_input_size
+    bench_script = load_tool('analysis_tools/benchmark.py')
+
+    def cfg_of(name):
+        return Config.fromfile(osp.join(ROOT, bench_script.MODELS[name]))
+
+    # keep_ratio into (320, 240) / (640, 480): the scale is the smaller of
+    # the two ratios, sizes rounded as MMCV rounds (int(x * s + 0.5))
+    assert pipeline_input_size(cfg_of(EDGE), (360, 640)) == (180, 320)
+    assert pipeline_input_size(cfg_of(EDGE), (675, 1280)) == (169, 320)
+    assert pipeline_input_size(cfg_of(SERVER), (360, 640)) == (360, 640)
+    assert pipeline_input_size(cfg_of(SERVER), (45, 80)) == (360, 640)
+
+    def with_pipeline(*resizes):
+        return Config(dict(test_dataloader=dict(dataset=dict(pipeline=[
+            dict(type='LoadImageFromFile'), *resizes,
+            dict(type='PackDetInputs')]))))
+
+    assert pipeline_input_size(with_pipeline(), (50, 70)) == (50, 70)
+    assert pipeline_input_size(with_pipeline(dict(
+        type='Resize', scale=(64, 32), keep_ratio=False)), (50, 70)) == \
+        (32, 64)
+    assert pipeline_input_size(with_pipeline(dict(
+        type='Resize', scale_factor=0.5)), (50, 70)) == (25, 35)
+    with pytest.raises(ValueError, match='only one MMDet Resize'):
+        pipeline_input_size(with_pipeline(
+            dict(type='Resize', scale=(64, 32)),
+            dict(type='Resize', scale=(32, 16))), (50, 70))
+    with pytest.raises(ValueError, match='only one MMDet Resize'):
+        pipeline_input_size(with_pipeline(
+            dict(type='RandomResize', scale=(64, 32))), (50, 70))
+    with pytest.raises(ValueError, match='no test pipeline'):
+        pipeline_input_size(Config(dict(model=dict())), (50, 70))
+
+
+def test_make_batch_puts_the_photo_in_at_the_size():
+    import cv2
+    import numpy as np
+
+    from cbnet_lab.benchmark import make_batch
+    photo = np.random.RandomState(0).randint(
+        0, 256, (67, 128, 3), dtype=np.uint8)
+    batch = make_batch(2, (36, 64), num_items=2, with_mask=False,
+                       image=photo)
+    expected = cv2.resize(photo, (64, 36), interpolation=cv2.INTER_LINEAR)
+    for img in batch['inputs']:
+        assert img.dtype == torch.uint8 and img.shape == (3, 36, 64)
+        assert torch.equal(img, torch.from_numpy(expected).permute(2, 0, 1))
+    assert batch['data_samples'][0].metainfo['img_shape'] == (36, 64)
+    with pytest.raises(ValueError, match='H x W x 3 uint8'):
+        make_batch(1, (36, 64), image=photo[..., 0])
+    with pytest.raises(ValueError, match='size must be'):
+        make_batch(1, (0, 64), image=photo)
+
+
+def test_edge_suite_defaults_and_overrides():
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    args = bench_script.parse_args(['--suite', 'edge'])
+    assert list(args.configs) == [EDGE, 'fcos-lite_640', SERVER,
+                                  'server_cbnet-revised']
+    assert args.size == [360, 640] and args.config_resize
+    assert args.threads == 1 and args.batch_sizes == [1]
+    assert args.no_train and args.reference == EDGE
+    assert args.scale_models == [] and args.scale_sizes == []
+    # the command line wins over the suite
+    args = bench_script.parse_args(['--suite', 'edge', '--size', '90', '160',
+                                    '--models', EDGE, '--repeats', '3'])
+    assert args.size == [90, 160] and list(args.configs) == [EDGE]
+    assert args.repeats == 3 and args.warmup == 2
+    # without the suite, nothing changes
+    plain = bench_script.parse_args([])
+    assert plain.size == [128, 256] and not plain.config_resize
+    assert plain.reference == 'cascade-mask-rcnn_swin-s'
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['--size', '0', '640'], '--size must be two positive'),
+    (['--size', '360x640', '640'], 'invalid int value'),
+    (['--size', '360'], 'expected 2 arguments'),
+    (['--models', 'x=/no/such/config.py'], "config of 'x' not found"),
+    (['--checkpoint', 'nope', __file__], '--checkpoint nope: not one of'),
+    (['--checkpoint', EDGE, '/no/such.pth'], 'no such file /no/such.pth'),
+    (['--suite', 'nope'], "invalid choice: 'nope'"),
+])
+def test_edge_suite_bad_arguments_are_clear_errors(argv, match, capsys):
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    with pytest.raises(SystemExit):
+        bench_script.parse_args(['--suite', 'edge'] + argv)
+    assert match in capsys.readouterr().err
+
+
+def test_a_missing_or_unreadable_image_is_an_error_before_any_build(
+        tmp_path):
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    bad = tmp_path / 'photo.jpg'
+    bad.write_text('not a jpeg')
+    args = bench_script.parse_args(['--suite', 'edge', '--image', str(bad),
+                                    '--out-dir', str(tmp_path / 'out')])
+    with pytest.raises(ValueError, match='not readable as an image'):
+        bench_script.run(args)
+    args.image = str(tmp_path / 'none.jpg')
+    with pytest.raises(FileNotFoundError, match='none.jpg: no such file'):
+        bench_script.run(args)
+
+
+def test_checkpoint_loads_strictly(tmp_path):
+    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.model_benchmark import Bench
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    trained = build_detector(load_benchmark_cfg(
+        osp.join(ROOT, bench_script.MODELS[EDGE])), seed=5).state_dict()
+    torch.save(dict(state_dict=trained), tmp_path / 'edge.pth')
+    args = bench_script.parse_args([
+        '--suite', 'edge', '--models', EDGE, '--checkpoint', EDGE,
+        str(tmp_path / 'edge.pth')])
+    loaded = Bench(args).models[EDGE].state_dict()
+    assert all(torch.equal(loaded[k], v) for k, v in trained.items())
+    # a checkpoint of another model: an error, not a half-loaded model
+    del trained['bbox_head.conv_cls.weight']
+    torch.save(dict(state_dict=trained), tmp_path / 'other.pth')
+    args = bench_script.parse_args([
+        '--suite', 'edge', '--models', EDGE, '--checkpoint', EDGE,
+        str(tmp_path / 'other.pth')])
+    with pytest.raises(RuntimeError, match='conv_cls.weight'):
+        Bench(args)
+
+
+def test_edge_suite_end_to_end_on_a_tiny_frame(tmp_path):
+    """Two models on a 45x80 photo: each gets the frame as its pipeline
+    resizes it, the record has the timing, memory and machine fields."""
+    import cv2
+    import numpy as np
+    bench_script = load_tool('analysis_tools/benchmark.py')
+    photo = np.random.RandomState(1).randint(
+        0, 256, (90, 160, 3), dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / 'frame.png'), photo)
+    out = tmp_path / 'out'
+    bench_script.main([
+        '--suite', 'edge', '--models', EDGE, SERVER, '--size', '45', '80',
+        '--repeats', '2', '--warmup', '1', '--no-flops', '--model-cfg',
+        SERVER, 'model.test_cfg.rpn.max_per_img=20', '--image',
+        str(tmp_path / 'frame.png'), '--out-dir', str(out)])
+    with open(out / 'benchmark.json') as f:
+        record = json.load(f)
+    meta, results = record['meta'], record['results']
+    assert meta['suite'] == 'edge' and meta['config_resize']
+    assert meta['size'] == [45, 80] and meta['image'].endswith('frame.png')
+    assert meta['machine']['threads'] == 1 and meta['reference'] == EDGE
+    assert len(meta['load_start']) == 3 and meta['date'] and not \
+        meta['partial']
+    assert list(results) == [EDGE, SERVER]
+    assert results[EDGE]['input_size'] == [180, 320]
+    assert results[SERVER]['input_size'] == [360, 640]
+    assert results[SERVER]['test_proposals'] == 20
+    for r in results.values():
+        inf = r['inference']['1']
+        assert len(inf['times']) == len(inf['cpu_times']) == 2
+        s = inf['seconds']
+        assert 0 < s['min'] <= s['median'] <= s['p95'] <= s['max']
+        assert inf['images_per_s'] == pytest.approx(1 / s['median'])
+        assert 0 < inf['cpu_seconds']['median']
+        assert inf['peak_mib'] is None or inf['peak_mib'] >= 0
+        assert r['weights_mib'] > 0 and 'train_step' not in r
+    md = (out / 'benchmark.md').read_text()
+    assert f'| {EDGE} |' in md and '| 180x320 |' in md
+    assert 'latency / ' + EDGE in md and 'load average' in md
+    assert 'frame.png' in md

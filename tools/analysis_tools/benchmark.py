@@ -20,8 +20,19 @@ memory against ``--scale-sizes``, and training step time and memory
 against ``--scale-items`` ground-truth instances per image (RoI head and
 loss cost).
 
+``--suite edge`` (issue 45) measures the edge model next to the server
+models of the real-fog deployment as the edge device runs them: one torch
+thread, ``--size`` read as a camera frame (640x360) that each model gets
+resized as its config's test pipeline resizes it (``--config-resize``;
+the ``input`` column), optionally a real photo as that frame
+(``--image``) and trained weights (``--checkpoint NAME FILE``), latency
+median and 95th percentile after the warm-up, frames/s (``img/s b1``),
+peak resident memory of a call and the weights; ratios to the edge model
+(``--reference``).
+
 Writes ``benchmark.json``, ``benchmark.md`` (tables, ratios to Cascade Mask
-R-CNN Swin-S) and ``scaling.png`` into ``--out-dir``; prints the markdown.
+R-CNN Swin-S or ``--reference``) and ``scaling.png`` into ``--out-dir``;
+prints the markdown.
 Both record the command, the date, the machine (platform, CPU count or GPU
 name), the torch thread count, the load average at the start and at the end
 and the torch/mmcv/mmdet versions.
@@ -47,6 +58,11 @@ Usage::
         --repeats 20 --warmup 5 \\
         --scale-sizes 256x512 512x1024 1024x2048
     python tools/analysis_tools/benchmark.py --device cuda --amp ...
+    # the edge model against the servers, 640x360 frames, one thread
+    # (projects/edge_serving/README.md "The edge model")
+    OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --suite edge \\
+        --image data/dawn_fog/JPEGImages/foggy-001.jpg \\
+        --out-dir docs/serving/edge_benchmark
 """
 import argparse
 import json
@@ -78,6 +94,35 @@ MODELS = {
     'faster-rcnn_x101-64x4d': 'configs/baselines/faster-rcnn_x101-64x4d_'
     'fpn_1x_cityscapes.py',
     'yolox_s': 'configs/baselines/yolox_s_8xb8-300e_cityscapes.py',
+    # issue 45: the edge model and the server models of the real-fog
+    # deployment, all on the pretrained MobileNetV2 (configs/pretrained/)
+    'edge_fcos-lite_320': 'configs/pretrained/fcos-lite_mobilenet-v2_fpn_'
+    '1xb2-ft_dawn-fog-320.py',
+    'fcos-lite_640': 'configs/pretrained/fcos-lite_mobilenet-v2_fpn_1xb2-'
+    'ft_dawn-fog.py',
+    'server_cascade-rcnn': 'configs/pretrained/cascade-rcnn_mobilenet-v2_'
+    'fpn_1xb2-ft_dawn-fog.py',
+    'server_cbnet-revised': 'configs/pretrained/cbnet-revised-box_'
+    'mobilenet-v2_nasfpn-crpn_1xb2-ft_dawn-fog.py',
+}
+
+#: ``--suite``: a named measurement, its settings as defaults (any option
+#: given on the command line still wins).
+SUITES = {
+    # issue 45, projects/edge_serving/README.md "The edge model": the edge
+    # model next to the server models like for like, as the edge device
+    # runs them: one torch thread, 640x360 camera frames each resized by
+    # its config's test pipeline (the edge model reads 320x180, the
+    # servers 640x360), batch 1, inference only; the light head at 640 px
+    # shows what the input size alone buys
+    'edge': dict(
+        models=['edge_fcos-lite_320', 'fcos-lite_640', 'server_cascade-rcnn',
+                'server_cbnet-revised'],
+        size=[360, 640], config_resize=True, batch_sizes=[1], repeats=20,
+        warmup=2, no_train=True, scale_models=[], scale_sizes=[],
+        scale_items=[],
+        threads=1, reference='edge_fcos-lite_320',
+        out_dir='work_dirs/benchmark_edge'),
 }
 
 
@@ -94,6 +139,25 @@ def parse_size(text):
 def parse_args(argv=None):
     p = argparse.ArgumentParser(
         description='CBNet vs baselines: speed, memory, FLOPs, scaling')
+    p.add_argument('--suite', choices=sorted(SUITES),
+                   help='a named measurement whose settings become the '
+                   'defaults: ' + '; '.join(
+                       f'{k}: {v}' for k, v in SUITES.items()))
+    p.add_argument('--config-resize', action='store_true',
+                   help='read --size as a camera frame that each model '
+                   'gets resized as its config\'s test pipeline resizes '
+                   'it (MMDet\'s inference API, the serving code); '
+                   'default: every model gets --size as it is')
+    p.add_argument('--image', default=None,
+                   help='a photo (any size) resized to --size as the '
+                   'input frame, instead of random pixels')
+    p.add_argument('--checkpoint', nargs=2, action='append', default=[],
+                   metavar=('NAME', 'FILE'),
+                   help='trained weights of one model (strict load), so '
+                   'detections and proposals are the trained model\'s '
+                   '(repeatable); default: random weights')
+    p.add_argument('--reference', default=REFERENCE,
+                   help='the model of the ratio columns')
     p.add_argument('--models', nargs='+', default=list(MODELS),
                    help=f'names from {list(MODELS)} or NAME=CONFIG')
     p.add_argument('--size', type=int, nargs=2, default=[128, 256],
@@ -137,6 +201,9 @@ def parse_args(argv=None):
                    '(and OMP_NUM_THREADS=1): spinning OpenMP threads make '
                    'ops several times slower under load')
     p.add_argument('--out-dir', default='work_dirs/benchmark')
+    known, _ = p.parse_known_args(argv)
+    if known.suite:
+        p.set_defaults(**SUITES[known.suite])
     args = p.parse_args(argv)
     if args.amp and not args.device.startswith('cuda'):
         p.error('--amp needs a CUDA --device')
@@ -167,6 +234,17 @@ def parse_args(argv=None):
                 p.error(f'--model-cfg {name}: {pair!r} is not KEY=VALUE')
             args.overrides.setdefault(name, {})[key] = value
     args.scale_models = [m for m in args.scale_models if m in configs]
+    if min(args.size) < 1:
+        p.error(f'--size must be two positive integers (H W), got '
+                f'{args.size}')
+    args.checkpoints = {}
+    for name, path in args.checkpoint:
+        if name not in configs:
+            p.error(f'--checkpoint {name}: not one of --models '
+                    f'{list(configs)}')
+        if not osp.isfile(path):
+            p.error(f'--checkpoint {name}: no such file {path}')
+        args.checkpoints[name] = path
     return args
 
 
@@ -192,6 +270,8 @@ def main(argv=None):
 
     def record(results, scaling, partial):
         meta = dict(
+            suite=args.suite, config_resize=args.config_resize,
+            image=args.image, reference=args.reference,
             size=args.size, batch_sizes=args.batch_sizes,
             repeats=args.repeats, proposals=args.proposals,
             train_batch_size=args.train_batch_size,
