@@ -118,22 +118,63 @@ def check_runs(local: Dict, server: Dict) -> List[str]:
     return frames
 
 
-def stream_annotations(ann_file: str, frames: Sequence[str]) -> Dict:
+#: How a frame's condition is read from its name (route.py's frame names
+#: are paths relative to its input folder): ``'beta'``, the Foggy
+#: Cityscapes file names (``*_foggy_beta_{b}.png`` -> ``b``, others
+#: ``clear``; a frame takes its clear twin's annotations); ``'folder'``,
+#: the first folder of the path (``fog/x.jpg`` -> ``fog``; a frame takes
+#: the annotations of the image whose ``file_name`` is its path, as
+#: :func:`.stream.build_stream` writes them).
+CONDITION_RULES = ('beta', 'folder')
+
+
+def frame_condition(frame: str, rule: str = 'beta') -> str:
+    """The condition of a frame under ``rule`` (:data:`CONDITION_RULES`)."""
+    if rule == 'beta':
+        return split_beta(osp.basename(frame))[1]
+    if rule == 'folder':
+        parts = frame.replace(osp.sep, '/').split('/')
+        if len(parts) < 2 or not parts[0]:
+            raise ValueError(f'frame {frame!r} is in no folder: with '
+                             "conditions='folder' each frame sits in its "
+                             "condition's folder (e.g. fog/x.jpg)")
+        return parts[0]
+    raise ValueError(f'conditions={rule!r}: one of {CONDITION_RULES}')
+
+
+def condition_order(conditions) -> List[str]:
+    """``clear`` first, then fog densities by beta, then other names."""
+    def key(c):
+        try:
+            return (c != 'clear', 0, float(c), c)
+        except ValueError:
+            return (c != 'clear', 1, 0.0, c)
+    return sorted(set(conditions), key=key)
+
+
+def stream_annotations(ann_file: str, frames: Sequence[str],
+                       rule: str = 'beta') -> Dict:
     """A COCO instances dict with one image per frame (ids from 1, as
     pycocotools reads id 0 as "no match"), each holding the annotations of
-    the clear image the frame shows."""
+    the image the frame shows: its clear twin (``rule='beta'``) or the
+    image whose ``file_name`` is the frame's path (``'folder'``)."""
+    if rule not in CONDITION_RULES:
+        raise ValueError(f'conditions={rule!r}: one of {CONDITION_RULES}')
     with open(ann_file) as f:
         coco = json.load(f)
     by_name = {}
     for img in coco['images']:
-        by_name.setdefault(osp.basename(img['file_name']), []).append(img)
+        name = osp.basename(img['file_name']) if rule == 'beta' else \
+            img['file_name'].replace(osp.sep, '/')
+        by_name.setdefault(name, []).append(img)
     anns = {}
     for ann in coco['annotations']:
         anns.setdefault(ann['image_id'], []).append(ann)
     images, annotations, missing = [], [], []
     for i, frame in enumerate(frames, 1):
-        clear, _ = split_beta(osp.basename(frame))
-        found = by_name.get(clear, [])
+        key = split_beta(osp.basename(frame))[0] if rule == 'beta' else \
+            frame.replace(osp.sep, '/')
+        found = by_name.get(key, [])
         if len(found) != 1:
             missing.append(frame)
             continue
@@ -146,7 +187,11 @@ def stream_annotations(ann_file: str, frames: Sequence[str]) -> Dict:
         raise ValueError(
             f'{len(missing)} frames have no (or no single) image in '
             f'{ann_file}, e.g. {missing[:3]}: the frames must be the '
-            "annotation file's images or their *_foggy_beta_* twins")
+            "annotation file's images or their *_foggy_beta_* twins"
+            if rule == 'beta' else
+            f'{ann_file}, e.g. {missing[:3]}: each frame path must be an '
+            "image's file_name (projects/edge_serving/tools/"
+            'make_stream.py writes both)')
     return dict(coco, images=images, annotations=annotations)
 
 
@@ -226,12 +271,16 @@ def offload_curve(local_dir: str,
                   classes: Optional[Sequence[str]] = None,
                   metrics: Sequence[str] = ('bbox', 'segm'),
                   calibrate: bool = False,
+                  conditions: str = 'beta',
                   progress=print) -> Dict:
     """Score always-local, always-server, the haze rule at each
     ``thresholds`` (``min_confidence`` 0; default: the deciles of the
     frames' transmission), the shipped ``policy``
     (``transmission_thr``, ``min_confidence``), random offloading at the
     same rates, and optionally a live ``--mode auto`` run.
+
+    ``conditions``: how a frame's condition (and its annotations) is
+    found, :data:`CONDITION_RULES`.
 
     ``calibrate``: score every row with each model's scores mapped onto
     the precision they stand for (:mod:`.calibration`, cross-fitted on
@@ -249,10 +298,10 @@ def offload_curve(local_dir: str,
                          'own scores: leave out auto_dir or calibrate')
     local, server = read_run(local_dir), read_run(server_dir)
     frames = check_runs(local, server)
-    gt = stream_annotations(ann_file, frames)
+    gt = stream_annotations(ann_file, frames, conditions)
     local_cls = _classes(local, 'local', classes)
     server_cls = _classes(server, 'server', classes)
-    cond = [split_beta(osp.basename(f))[1] for f in frames]
+    cond = [frame_condition(f, conditions) for f in frames]
     preds = {side: [run['records'][f]['prediction'] for f in frames]
              for side, run in (('local', local), ('server', server))}
     calibration = None
@@ -263,8 +312,7 @@ def offload_curve(local_dir: str,
             progress(f'calibrating the {side} model\'s scores')
             preds[side], calibration[side] = cross_fitted(
                 preds[side], gt, cls)
-    conditions = sorted(set(cond), key=lambda c: -1 if c == 'clear'
-                        else float(c))
+    rule, conditions = conditions, condition_order(cond)
     t = np.array([local['records'][f]['transmission'] for f in frames])
     if thresholds is None:
         thresholds = sorted(set(np.round(
@@ -364,6 +412,7 @@ def offload_curve(local_dir: str,
             for side, cls in (('local', local_cls), ('server', server_cls))}
     return dict(frames=n, conditions=conditions, rows=rows,
                 by_condition=by_condition, calibrated=bool(calibrate),
+                condition_rule=rule,
                 calibration=calibration,
                 transmission={c: float(np.mean(
                     [x for x, k in zip(t, cond) if k == c]))

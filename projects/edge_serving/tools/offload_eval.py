@@ -43,6 +43,12 @@ def parse_args(argv=None):
                    'stand for (isotonic, per class, cross-fitted on two '
                    'halves of the frames) before the two are ranked '
                    'together; not with --auto')
+    p.add_argument('--conditions', choices=('beta', 'folder'),
+                   default='beta',
+                   help="a frame's condition: 'beta' from Foggy Cityscapes "
+                   "names (*_foggy_beta_B; annotations of the clear twin), "
+                   "'folder' from its first folder (make_stream.py's "
+                   'layout; annotations by the frame path)')
     p.add_argument('--out-dir', help='default: the local folder')
     return p.parse_args(argv)
 
@@ -61,7 +67,7 @@ def main(argv=None):
                     min_confidence=router.min_confidence),
         auto_dir=args.auto,
         metrics=('bbox', ) if args.boxes_only else ('bbox', 'segm'),
-        calibrate=args.calibrate)
+        calibrate=args.calibrate, conditions=args.conditions)
     paths = write(result, args.out_dir or args.local)
     print(to_markdown(result))
     print(f"written: {paths['json']}, {paths['markdown']}")
