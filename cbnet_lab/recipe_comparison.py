@@ -278,12 +278,14 @@ SET_COLUMNS = {
 #: The in-domain ceiling of a set, tabulated from another set's record and
 #: never retrained: the record's set, the condition read from it, and which
 #: of its recipes stands beside which of this set's (by the prefix of
-#: this set's row names). ``fog_transfer``: the same trunk and heads
-#: trained on DAWN's own train split, box-only (the realfog_pretrained
-#: set), tested on the same 65 val photos.
+#: this set's row names), and what it is. ``fog_transfer``: the same
+#: trunk and heads trained on DAWN's own train split, box-only (the
+#: realfog_pretrained set), tested on the same 65 val photos.
 SET_CEILINGS = {
     'fog_transfer': dict(
         set='realfog_pretrained', condition='real fog',
+        what="the same trunk and heads, box-only, trained on DAWN's own "
+        'train split',
         rows={'Cascade Mask R-CNN': 'Cascade R-CNN',
               'CBNet revised': 'CBNet revised'}),
 }
@@ -906,8 +908,8 @@ def ceiling(set_name: Optional[str], record_path: Optional[str],
                              f'ceiling; sets with one: '
                              f'{sorted(SET_CEILINGS)}')
         return None, ''
-    head = (f'**in-domain ceiling** (the {spec["set"]} set: trained on '
-            f'{spec["condition"]}\'s own train split; not retrained here)')
+    head = (f'**in-domain ceiling** ({spec["what"]}: the {spec["set"]} '
+            "set's record, not retrained here)")
     if record_path is None:
         return None, (f'{head}: not tabulated; give --ceiling with that '
                       "set's compare.json")
@@ -934,7 +936,7 @@ def ceiling(set_name: Optional[str], record_path: Optional[str],
                  condition=spec['condition'], seeds=record.get('seeds'),
                  date=record.get('date'), budget=record.get('budget'),
                  rows=rows)
-    lines = [f'{head}, {spec["condition"]}, from {record_path} '
+    lines = [f'{head}, on {spec["condition"]}, from {record_path} '
              f'(seeds {record.get("seeds")}, {record.get("date")})', '']
     lines += markdown_table(['recipe'] + list(columns), table) if table \
         else ['(none of its recipes is in the record yet)']
