@@ -220,7 +220,7 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     truth passed on for ``CocoMetric`` (``'instances'`` in
     ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
     (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
-    ``test_condition`` is ``'real fog'``.
+    ``test_condition`` is ``'real fog'``; a ``transfer_test`` is dropped.
 
     Args:
         cfg (Config): A detector config of the project (CBNet, CBNet-DD,
@@ -255,6 +255,8 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     cfg.test_dataloader.dataset = dataset
     cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
     cfg.test_condition = 'real fog'
+    # it tests real fog itself now: no second test set after it
+    cfg.pop('transfer_test', None)
     return cfg
 
 
@@ -326,10 +328,10 @@ def transfer_cfg(cfg: Config, data_root: Optional[str] = None) -> Config:
         raise FileNotFoundError(
             f'the transfer test set {name!r} ({cfg.filename}) is the VOC '
             f'folder {root}, which does not exist; give its folder '
-            '(compare_recipes.py --transfer-root)')
+            '(compare_recipes.py --transfer-root DIR, or --cfg-options '
+            'transfer_test.data_root=DIR)')
     out = real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
     out.test_condition = name
-    out.pop('transfer_test')
     return out
 
 

@@ -202,6 +202,10 @@ def test_transfer_test_is_checked(tmp_path):
     assert ad.transfer_test(cfg)['condition'] == 'real fog'
     with pytest.raises(FileNotFoundError, match='--transfer-root'):
         ad.transfer_cfg(cfg)
+    # a config made to test real fog itself tests no second set after it
+    assert 'transfer_test' not in ad.real_fog_cfg(Config(dict(
+        transfer_test=dict(condition='fog', data_root=str(tmp_path)),
+        test_dataloader=dict(dataset=dict(pipeline=[])))), str(tmp_path))
     for bad, match in (
             (dict(data_root='d'), "non-empty 'condition'"),
             (dict(condition='real fog'), "non-empty 'data_root'"),
