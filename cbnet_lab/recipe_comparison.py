@@ -249,6 +249,24 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'cbnet-revised_mobilenet-v2_nasfpn-crpn_dcp-test_coco-street-to-'
          'dawn-fog.py'),
     ],
+    # issue 44 item 3, generated -> real: the same models trained on the
+    # generated scenes, clear or with their depth-rendered fog (beta 0.02),
+    # tested on generated clear / foggy val and on DAWN's real fog val
+    # (--transfer-root): how far rendered fog is from real fog
+    'fog_generated_to_real': [
+        ('Cascade Mask R-CNN, generated clear', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_cityscapes-like-to-'
+         'dawn-fog.py'),
+        ('Cascade Mask R-CNN, generated fog', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_foggy-cityscapes-like-'
+         'to-dawn-fog.py'),
+        ('CBNet revised, generated clear', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_cityscapes-like-to-'
+         'dawn-fog.py'),
+        ('CBNet revised, generated fog', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_foggy-cityscapes-'
+         'like-to-dawn-fog.py'),
+    ],
     # proposal recall of the three RPN heads
     'rpn': [
         ('CBNet CRPN',
@@ -273,6 +291,7 @@ SET_COLUMNS = {
                                          'box AP_m', 'box AP_l'),
     # boxes: the only labels real fog (DAWN) has
     'fog_transfer': metric_columns('box AP', 'box AP50'),
+    'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
 }
 
 #: The in-domain ceiling of a set, tabulated from another set's record and
@@ -363,10 +382,17 @@ PRESETS: Dict[str, Preset] = {
         'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
         warmup_iters=50, img_scale=(640, 480),
         transfer_root='data/dawn_fog'),
+    # issue 44 item 3: the bench preset's data and budget (600 iterations
+    # of 4 generated 256x512 scenes), DAWN's val photos resized alike
+    'fog_generated_to_real': Preset(
+        'data/cityscapes_like_bench', iters=600, batch_size=4,
+        warmup_iters=30, img_scale=(512, 256),
+        transfer_root='data/dawn_fog'),
 }
 #: The preset a set runs with when ``--preset`` is not given.
 SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
-               'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer'}
+               'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
+               'fog_generated_to_real': 'fog_generated_to_real'}
 
 
 def resolve_recipes(set_name: Optional[str] = None,

@@ -23,6 +23,7 @@ SHIPPED = sorted(
     glob.glob(osp.join(ROOT, 'projects', 'peer_dehaze', 'configs',
                        'pretrained', 'fog_transfer', '*.py')))
 SET = rc.resolve_recipes('fog_transfer')
+GENERATED = rc.resolve_recipes('fog_generated_to_real')
 STREET = dict(rc.resolve_recipes('coco_street'))
 #: trunk and heads: the coco_street row each family starts from
 FAMILIES = {'Cascade Mask R-CNN': STREET['Cascade Mask R-CNN'],
@@ -39,9 +40,32 @@ def empty_cache(tmp_path, monkeypatch):
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'empty'))
 
 
-def test_every_config_is_in_the_set():
-    assert sorted(osp.normpath(p) for _, p in SET) == SHIPPED
-    assert len(SET) == 8
+def test_every_config_is_in_a_set():
+    assert sorted(osp.normpath(p) for _, p in SET + GENERATED) == SHIPPED
+    assert len(SET) == 8 and len(GENERATED) == 4
+
+
+@pytest.mark.parametrize('name,path', GENERATED[1::2],
+                         ids=[n for n, _ in GENERATED[1::2]])
+def test_generated_fog_row_is_its_clear_row_on_depth_fog(name, path):
+    """Item 3: the fog_transfer rows' model on the generated scenes; the
+    fog row trains on their depth-rendered fog, tests as the clear row."""
+    clear_path = dict(GENERATED)[name.replace('generated fog',
+                                              'generated clear')]
+    clear, cfg = load(clear_path), load(path)
+    family = next(f for f in FAMILIES if f in name)
+    assert clear.model == load(FAMILIES[family]).model
+    assert clear.transfer_test == load(dict(SET)[f'{family}, clear'
+                                                 ]).transfer_test
+    assert clear.train_dataloader.dataset.dataset.type == \
+        'CBNetCityscapesDataset'
+    fog = cfg.train_dataloader.dataset.dataset
+    assert (fog.type, fog.beta) == ('CBNetFoggyCityscapesDataset', 0.02)
+    fog.type = 'CBNetCityscapesDataset'
+    fog.pop('beta')
+    assert cfg.train_dataloader == clear.train_dataloader
+    assert cfg.model == clear.model
+    assert cfg.test_dataloader == clear.test_dataloader
 
 
 @pytest.mark.parametrize('name,path', SET, ids=[n for n, _ in SET])
@@ -94,7 +118,8 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
         assert cfg.model == clear.model
 
 
-@pytest.mark.parametrize('name,path', SET, ids=[n for n, _ in SET])
+@pytest.mark.parametrize('name,path', SET + GENERATED,
+                         ids=[n for n, _ in SET + GENERATED])
 def test_builds_without_weights_and_tests_on_real_fog(name, path,
                                                       tmp_path):
     cfg = load(path)

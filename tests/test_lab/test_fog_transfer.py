@@ -148,6 +148,34 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
     assert trained == []
 
 
+@pytest.mark.slow
+def test_generated_to_real_set_end_to_end(cityscapes_like_root, tiny_data,
+                                          fake_weights,  # noqa: F811
+                                          tmp_path):
+    """Item 3: trained on the generated scenes (clear, or their depth fog),
+    tested on generated clear and foggy val, then on real fog."""
+    _, fog = tiny_data
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    record = tool.main(
+        ['--set', 'fog_generated_to_real', '--data-root',
+         cityscapes_like_root, '--transfer-root', fog, '--betas', '0.02',
+         '--work-dir', str(tmp_path / 'runs'), '--img-scale', '256', '128'] +
+        FAST + ['--cfg-options'] + TEST_IN_PROCESS)
+    names = [n for n, _ in rc.RECIPE_SETS['fog_generated_to_real']]
+    assert [r['recipe'] for r in record['runs']] == names
+    conditions = ['clear', 'foggy beta=0.02', 'real fog']
+    for run in record['runs']:
+        assert list(run['metrics']) == conditions
+        assert 'coco/segm_mAP' not in run['metrics']['real fog']
+    summary = record['summary']
+    assert summary['conditions'] == conditions
+    assert summary['columns'] == ['box AP', 'box AP50']
+    assert 'box AP drop' in summary['summary'][names[1]]['real fog']
+    assert 'ceiling' not in record
+    md = (tmp_path / 'runs' / 'compare.md').read_text()
+    assert '**foggy beta=0.02**' in md and '**real fog**' in md
+
+
 def test_a_test_only_row_whose_source_never_ran_is_a_clear_error(
         tmp_path):
     clear, dcp = [(n, p) for n, p in rc.resolve_recipes('fog_transfer')

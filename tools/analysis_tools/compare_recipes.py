@@ -48,6 +48,10 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             tested on COCO street val and on DAWN's fog + haze val
             (--transfer-root), box AP / AP50 and the drop; --ceiling adds
             the realfog_pretrained record (trained on DAWN) as the ceiling
+  fog_generated_to_real  the same two models trained on the generated
+            scenes (bench preset), clear or with their depth-rendered fog
+            (beta 0.02), tested on generated clear / foggy val and on
+            DAWN's real fog (--transfer-root): rendered fog vs real fog
 
 Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512
@@ -101,6 +105,12 @@ Examples::
         --set fog_transfer --data-root data/coco_street \
         --transfer-root data/dawn_fog --threads 1 \
         --ceiling work_dirs/compare/realfog_pretrained/compare.json
+    # generated -> real: the bench data once, then the set
+    python tools/misc/generate_cityscapes_like.py \
+        data/cityscapes_like_bench --preset bench --nproc 2 --convert
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set fog_generated_to_real --transfer-root data/dawn_fog \
+        --threads 1
 """
 import argparse
 import sys
