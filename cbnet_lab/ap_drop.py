@@ -12,6 +12,12 @@ evaluated as it is, under that name, and foggy betas are an error.
 :func:`real_fog_cfg` turns any detector config of the project into one:
 its model and test pipeline on the val split of a VOC real-fog folder,
 boxes only.
+
+Transfer. A config that also sets ``transfer_test = dict(condition=NAME,
+data_root=VOC_FOLDER, ...)`` (the fog_transfer recipes of
+``configs/pretrained/fog_transfer/``: trained on clear photos) is tested
+on its own test set first, then on that real-fog folder under ``NAME``
+(:func:`transfer_cfg`), so the drop from one to the other is reported.
 """
 import copy
 import os.path as osp
@@ -214,7 +220,7 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     truth passed on for ``CocoMetric`` (``'instances'`` in
     ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
     (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
-    ``test_condition`` is ``'real fog'``.
+    ``test_condition`` is ``'real fog'``; a ``transfer_test`` is dropped.
 
     Args:
         cfg (Config): A detector config of the project (CBNet, CBNet-DD,
@@ -249,6 +255,8 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     cfg.test_dataloader.dataset = dataset
     cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
     cfg.test_condition = 'real fog'
+    # it tests real fog itself now: no second test set after it
+    cfg.pop('transfer_test', None)
     return cfg
 
 
@@ -262,6 +270,71 @@ def test_condition(cfg: Config) -> Optional[str]:
     return name
 
 
+#: Keys of a config's ``transfer_test``: the condition's name and VOC
+#: folder are required, the rest are :class:`CBNetVOCFogDataset`'s split
+#: arguments.
+TRANSFER_KEYS = ('condition', 'data_root', 'split', 'val_fraction',
+                 'split_seed', 'ann_file', 'img_suffix')
+
+
+def transfer_test(cfg: Config) -> Optional[dict]:
+    """The ``transfer_test`` of a config (None when it has none), checked.
+
+    Raises:
+        ValueError: It lacks ``condition`` or ``data_root``, has a key
+            other than :data:`TRANSFER_KEYS`, or names the condition the
+            config's own test set is reported under.
+    """
+    spec = cfg.get('transfer_test')
+    if spec is None:
+        return None
+    where = f'{cfg.filename}: transfer_test'
+    if not isinstance(spec, dict):
+        raise ValueError(f'{where} must be a dict, got {spec!r}')
+    spec = dict(spec)
+    unknown = sorted(set(spec) - set(TRANSFER_KEYS))
+    if unknown:
+        raise ValueError(f'{where}: unknown keys {unknown}; known: '
+                         f'{list(TRANSFER_KEYS)}')
+    for key in ('condition', 'data_root'):
+        if not isinstance(spec.get(key), str) or not spec[key].strip():
+            raise ValueError(f'{where} needs a non-empty {key!r}, got '
+                             f'{spec.get(key)!r}')
+    if spec['condition'] == (test_condition(cfg) or 'clear'):
+        raise ValueError(
+            f"{where}: condition {spec['condition']!r} is also the name of "
+            'the config\'s own test set; give the transfer set another name')
+    return spec
+
+
+def transfer_cfg(cfg: Config, data_root: Optional[str] = None) -> Config:
+    """Copy of ``cfg`` testing its model on its ``transfer_test`` set.
+
+    Args:
+        cfg (Config): A config with ``transfer_test``.
+        data_root (str, optional): The VOC folder, in place of
+            ``transfer_test.data_root``.
+
+    Returns:
+        Config: :func:`real_fog_cfg` of ``cfg`` on that folder, its
+        ``test_condition`` the transfer condition's name.
+    """
+    spec = transfer_test(cfg)
+    if spec is None:
+        raise ValueError(f'{cfg.filename} has no transfer_test')
+    name, root = spec.pop('condition'), spec.pop('data_root')
+    root = data_root or root
+    if not osp.isdir(root):
+        raise FileNotFoundError(
+            f'the transfer test set {name!r} ({cfg.filename}) is the VOC '
+            f'folder {root}, which does not exist; give its folder '
+            '(compare_recipes.py --transfer-root DIR, or --cfg-options '
+            'transfer_test.data_root=DIR)')
+    out = real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
+    out.test_condition = name
+    return out
+
+
 def default_betas(cfg: Config,
                   betas: Sequence[float] = (0.02, )) -> List[float]:
     """``betas`` for a Cityscapes config, none for a real-data one."""
@@ -269,11 +342,13 @@ def default_betas(cfg: Config,
 
 
 def ap_drop(cfg: Config, checkpoint: str, work_dir: str,
-            betas: Sequence[float] = (0.02, )) -> dict:
+            betas: Sequence[float] = (0.02, ),
+            transfer_root: Optional[str] = None) -> dict:
     """Evaluate on clear val and on foggy val for each beta.
 
     A config with ``test_condition = NAME`` (real data) is tested on its
-    own test set only, as condition ``NAME``.
+    own test set only, as condition ``NAME``. A config with
+    ``transfer_test`` is then also tested on that set (last condition).
 
     Args:
         cfg (Config): Test config.
@@ -281,6 +356,8 @@ def ap_drop(cfg: Config, checkpoint: str, work_dir: str,
         work_dir (str): Output folder of the runs.
         betas (Sequence[float]): Fog densities, 1/m (none for a config with
             ``test_condition``).
+        transfer_root (str, optional): The folder of the config's
+            ``transfer_test`` set, in place of its ``data_root``.
 
     Returns:
         dict: :func:`drop_table` output plus the raw ``metrics``.
@@ -302,6 +379,11 @@ def ap_drop(cfg: Config, checkpoint: str, work_dir: str,
     for beta in betas:
         metrics[f'foggy beta={beta}'] = evaluate_condition(
             cfg, checkpoint, work_dir, beta)
+    if transfer_test(cfg) is not None:
+        other = transfer_cfg(cfg, transfer_root)
+        metrics[other.test_condition] = evaluate_checkpoint(
+            other, checkpoint, work_dir,
+            re.sub(r'\W+', '_', other.test_condition), prefix='ap_drop')
     table = drop_table(metrics)
     table['metrics'] = {
         c: {k: float(v) for k, v in m.items()} for c, m in metrics.items()

@@ -17,6 +17,16 @@ trained for that seed, in the same comparison (listed before it), under
 the variant's own test settings (``model.test_cfg``, test pipeline). That
 compares, say, test-time proposal counts on the very same weights.
 
+Transfer. A config that also sets ``transfer_test`` (the
+``fog_transfer`` set: trained on clear COCO street photos) is tested on
+its own test set and then on that real-fog VOC folder (``transfer_root``,
+default the config's), two conditions per run and the drop between them
+(:func:`cbnet_lab.ap_drop.ap_drop`). A test-time variant's source run must
+be finished (its checkpoint on disk): one that another process of the
+comparison is still training is waited for, one that is missing (never
+trained, or restored from a record without its weights) is an error
+naming the file.
+
 Real data. When the recipes' configs set ``test_condition = NAME`` (the
 real-fog configs of ``configs/realfog/``, set ``realfog``), ``data_root``
 is that dataset (a VOC folder) and each run is tested on the config's own
@@ -39,9 +49,10 @@ import numpy as np
 from mmengine.config import Config
 from mmengine.device import get_device
 
+from cbnet_tools.markdown import markdown_table
 from cbnet_tools.pretrained import require_pretrained
 
-from .ap_drop import ap_drop, test_condition
+from .ap_drop import ap_drop, test_condition, transfer_test
 from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
                            resume_file)
 from .report import machine_line, plot, to_markdown
@@ -232,6 +243,60 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet revised -IoU .5/.7/.9', 'pretrained/parts/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft_dawn-fog.py'),
     ],
+    # issue 44: does training with synthetic fog carry over to real fog?
+    # Trained on the CLEAR COCO street photos (with their masks: CBNet-DD
+    # distils mask logits), tested on COCO street val (clear) and on DAWN's
+    # fog + haze val (real fog, boxes): the floor, synthetic fog
+    # augmentation, CBNet-DD on synthetic foggy twins, and the dark channel
+    # prior in front of the floor's own checkpoint at test time (trains
+    # nothing), on the stock cascade and on the revised CBNet; the
+    # in-domain ceiling is the realfog_pretrained record (SET_CEILINGS)
+    'fog_transfer': [
+        ('Cascade Mask R-CNN, clear', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb2-ft_coco-street-to-'
+         'dawn-fog.py'),
+        ('Cascade Mask R-CNN, clear + fog aug', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb2-ft-fog-aug_coco-street-'
+         'to-dawn-fog.py'),
+        ('Cascade Mask R-CNN, CBNet-DD', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn-dd_mobilenet-v2_fpn_1xb2-ft_coco-street-to-'
+         'dawn-fog.py'),
+        ('DCP + Cascade Mask R-CNN, clear (test only)',
+         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_dcp-test_coco-street-to-'
+         'dawn-fog.py'),
+        ('CBNet revised, clear', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb2-ft_coco-street-to-'
+         'dawn-fog.py'),
+        ('CBNet revised, clear + fog aug', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb2-ft-fog-aug_coco-'
+         'street-to-dawn-fog.py'),
+        ('CBNet revised, CBNet-DD', 'pretrained/fog_transfer/'
+         'cbnet-revised-dd_mobilenet-v2_nasfpn-crpn_1xb2-ft_coco-street-'
+         'to-dawn-fog.py'),
+        ('DCP + CBNet revised, clear (test only)',
+         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_dcp-test_coco-street-to-'
+         'dawn-fog.py'),
+    ],
+    # issue 44 item 3, generated -> real: the same models trained on the
+    # generated scenes, clear or with their depth-rendered fog (beta 0.02),
+    # tested on generated clear / foggy val and on DAWN's real fog val
+    # (--transfer-root): how far rendered fog is from real fog
+    'fog_generated_to_real': [
+        ('Cascade Mask R-CNN, generated clear', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_cityscapes-like-to-'
+         'dawn-fog.py'),
+        ('Cascade Mask R-CNN, generated fog', 'pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_foggy-cityscapes-like-'
+         'to-dawn-fog.py'),
+        ('CBNet revised, generated clear', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_cityscapes-like-to-'
+         'dawn-fog.py'),
+        ('CBNet revised, generated fog', 'pretrained/fog_transfer/'
+         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_foggy-cityscapes-'
+         'like-to-dawn-fog.py'),
+    ],
     # proposal recall of the three RPN heads
     'rpn': [
         ('CBNet CRPN',
@@ -254,6 +319,24 @@ PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
 SET_COLUMNS = {
     'realfog_pretrained': metric_columns('box AP', 'box AP50', 'box AP_s',
                                          'box AP_m', 'box AP_l'),
+    # boxes: the only labels real fog (DAWN) has
+    'fog_transfer': metric_columns('box AP', 'box AP50'),
+    'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
+}
+
+#: The in-domain ceiling of a set, tabulated from another set's record and
+#: never retrained: the record's set, the condition read from it, and which
+#: of its recipes stands beside which of this set's (by the prefix of
+#: this set's row names), and what it is. ``fog_transfer``: the same
+#: trunk and heads trained on DAWN's own train split, box-only (the
+#: realfog_pretrained set), tested on the same 65 val photos.
+SET_CEILINGS = {
+    'fog_transfer': dict(
+        set='realfog_pretrained', condition='real fog',
+        what="the same trunk and heads, box-only, trained on DAWN's own "
+        'train split',
+        rows={'Cascade Mask R-CNN': 'Cascade R-CNN',
+              'CBNet revised': 'CBNet revised'}),
 }
 SET_COLUMNS['realfog_pretrained_parts'] = SET_COLUMNS['realfog_pretrained']
 
@@ -270,18 +353,23 @@ class Preset:
         warmup_iters (int): Linear warm-up iterations.
         img_scale (tuple[int, int], optional): ``(w, h)`` of every Resize
             (None: each config's own).
+        transfer_root (str, optional): The real-fog folder the recipes'
+            ``transfer_test`` is read from (None: the configs').
     """
     data_root: str
     iters: int
     batch_size: int
     warmup_iters: int
     img_scale: Optional[Tuple[int, int]] = None
+    transfer_root: Optional[str] = None
 
     def describe(self) -> str:
         size = 'config sizes' if self.img_scale is None else \
             'x'.join(str(v) for v in self.img_scale[::-1])
+        tested = '' if self.transfer_root is None else \
+            f', also tested on {self.transfer_root}'
         return (f'{self.data_root}, {self.iters} iters x '
-                f'{self.batch_size} images, {size}')
+                f'{self.batch_size} images, {size}{tested}')
 
 
 #: The real-fog budget on the pretrained trunk: 900 iterations of 2 photos
@@ -317,11 +405,26 @@ PRESETS: Dict[str, Preset] = {
     'coco_street': Preset(
         'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
         warmup_iters=50, img_scale=(640, 480)),
+    # issue 44: trained on the clear COCO street photos at the coco_street
+    # budget (430 iterations of 2 photos: 12 epochs of its 71 training
+    # photos, 640x480 at most), every run also tested on DAWN's fog + haze
+    # val at the same size (the realfog_pretrained set's 65 val photos)
+    'fog_transfer': Preset(
+        'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
+        warmup_iters=50, img_scale=(640, 480),
+        transfer_root='data/dawn_fog'),
+    # issue 44 item 3: the bench preset's data and budget (600 iterations
+    # of 4 generated 256x512 scenes), DAWN's val photos resized alike
+    'fog_generated_to_real': Preset(
+        'data/cityscapes_like_bench', iters=600, batch_size=4,
+        warmup_iters=30, img_scale=(512, 256),
+        transfer_root='data/dawn_fog'),
 }
 #: The preset a set runs with when ``--preset`` is not given.
 SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
                'realfog_pretrained_parts': 'realfog_pretrained',
-               'coco_street': 'coco_street'}
+               'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
+               'fog_generated_to_real': 'fog_generated_to_real'}
 
 
 def resolve_recipes(set_name: Optional[str] = None,
@@ -513,7 +616,8 @@ def restore_runs(record_path: str, out_dir: str, budget: Budget) -> int:
 def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
                cfg_options: Optional[dict] = None,
-               weights_of: Optional[str] = None) -> dict:
+               weights_of: Optional[str] = None,
+               transfer_root: Optional[str] = None) -> dict:
     """Train one recipe with one seed and test it on clear and foggy val.
 
     Finished runs are read back from their ``result.json``. With
@@ -531,6 +635,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         cfg_options (dict, optional): Config overrides.
         weights_of (str, optional): Name of the recipe whose weights to
             test (a test-time variant); None trains this recipe.
+        transfer_root (str, optional): The folder of the config's
+            ``transfer_test`` set (None: the config's own).
 
     Returns:
         dict: ``recipe``, ``config``, ``seed``, ``train_time_s`` (None for
@@ -550,9 +656,18 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     if weights_of is not None:
         checkpoint = checkpoint_file(out_dir, weights_of, seed, budget)
         if not osp.isfile(checkpoint):
+            done = osp.isfile(result_file(out_dir, weights_of, seed))
+            why = ('its result.json is there but not its weights (a run '
+                   'restored from a record?): train that run again here '
+                   '(remove its result.json) or use the work dir that '
+                   'holds them') if done else \
+                ('that run has not been trained in this work dir: run the '
+                 f'comparison with {weights_of!r} (list it before '
+                 f'{name!r}) first')
             raise FileNotFoundError(
-                f'recipe {name!r} tests the weights of {weights_of!r}, seed '
-                f'{seed}, but {checkpoint} does not exist')
+                f'recipe {name!r} trains nothing: it tests the weights of '
+                f'{weights_of!r}, seed {seed}, but {checkpoint} does not '
+                f'exist; {why}')
         train_time, extra = None, dict(weights_of=weights_of)
     else:
         require_pretrained(cfg)
@@ -575,7 +690,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             extra = dict(resumed_at_iter=resumed,
                          train_time_extrapolated=True)
     test_cfg = copy.deepcopy(cfg)
-    table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas)
+    table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas,
+                    transfer_root=transfer_root)
     result = dict(
         recipe=name, config=config, seed=seed, budget=asdict(budget),
         train_time_s=train_time, metrics=table['metrics'], **extra)
@@ -736,6 +852,9 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
         results, None if columns is None else
         (tuple(columns), DETECTION_COLUMNS, PROPOSAL_COLUMNS))
     conditions = condition_names(betas, reference)
+    # a recipe's transfer_test set comes after them (fog_transfer)
+    for r in results:
+        conditions += [c for c in r['metrics'] if c not in conditions]
     recipes: Dict[str, List[dict]] = {}
     for r in results:
         recipes.setdefault(r['recipe'], []).append(r)
@@ -794,6 +913,102 @@ def check_data(reference: str, data_root: str,
             '`python tools/dataset_converters/cityscapes.py DIR`)')
 
 
+def check_transfer(recipes: Sequence[Tuple[str, str]],
+                   transfer_root: Optional[str]) -> None:
+    """The real-fog folder of the recipes' ``transfer_test`` exists, before
+    any training (each config's own ``data_root`` when ``transfer_root``
+    is None); ``transfer_root`` without such a recipe is an error."""
+    specs = {name: transfer_test(Config.fromfile(config))
+             for name, config in recipes}
+    if transfer_root is not None and not any(specs.values()):
+        raise ValueError(
+            f'--transfer-root {transfer_root}: no recipe sets transfer_test '
+            '(a second test set), so it would not be read')
+    for name, spec in specs.items():
+        root = transfer_root or (spec or {}).get('data_root')
+        if spec is not None and not osp.isdir(root):
+            raise FileNotFoundError(
+                f'recipe {name!r} is also tested on {spec["condition"]!r}, '
+                f'the VOC folder {root}, which does not exist; give it with '
+                '--transfer-root')
+
+
+def held_elsewhere(out_dir: str, name: str, seed: int) -> bool:
+    """Whether another live process holds the lock of a run."""
+    lock = RunLock(osp.dirname(result_file(out_dir, name, seed)))
+    holder = lock.holder()
+    return holder is not None and holder != lock._me() and \
+        not lock._stale(holder)
+
+
+def ceiling(set_name: Optional[str], record_path: Optional[str],
+            columns: Sequence[str]) -> Tuple[Optional[dict], str]:
+    """The in-domain ceiling of a set (:data:`SET_CEILINGS`) read from
+    another set's saved record, never retrained.
+
+    Args:
+        set_name (str, optional): This comparison's set.
+        record_path (str, optional): That set's ``compare.json`` (None:
+            the table says how to add it).
+        columns (Sequence[str]): This comparison's columns.
+
+    Returns:
+        tuple: the record's entry (None without ceiling or record) and
+        markdown ('' for a set without ceiling).
+
+    Raises:
+        ValueError: The record is of another set, or lacks the condition.
+    """
+    spec = SET_CEILINGS.get(set_name)
+    if spec is None:
+        if record_path is not None:
+            raise ValueError(f'--ceiling: set {set_name!r} has no in-domain '
+                             f'ceiling; sets with one: '
+                             f'{sorted(SET_CEILINGS)}')
+        return None, ''
+    head = (f'**in-domain ceiling** ({spec["what"]}: the {spec["set"]} '
+            "set's record, not retrained here)")
+    if record_path is None:
+        return None, (f'{head}: not tabulated; give --ceiling with that '
+                      "set's compare.json")
+    with open(record_path) as f:
+        record = json.load(f)
+    if record.get('set') != spec['set']:
+        raise ValueError(f'--ceiling {record_path}: a record of set '
+                         f'{record.get("set")!r}, not {spec["set"]!r}')
+    summary = record['summary']
+    if spec['condition'] not in summary.get('conditions', []):
+        raise ValueError(f'--ceiling {record_path}: no condition '
+                         f'{spec["condition"]!r} in it')
+    rows, table = {}, []
+    for ours, theirs in spec['rows'].items():
+        entry = summary['summary'].get(theirs)
+        if entry is None:
+            continue
+        stats = entry[spec['condition']]
+        rows[ours] = dict(recipe=theirs,
+                          **{c: stats.get(c) for c in columns})
+        table.append([f'{theirs} (beside {ours})'] +
+                     [_ceiling_cell(stats.get(c)) for c in columns])
+    entry = dict(record=record_path, set=spec['set'],
+                 condition=spec['condition'], seeds=record.get('seeds'),
+                 date=record.get('date'), budget=record.get('budget'),
+                 rows=rows)
+    lines = [f'{head}, on {spec["condition"]}, from {record_path} '
+             f'(seeds {record.get("seeds")}, {record.get("date")})', '']
+    lines += markdown_table(['recipe'] + list(columns), table) if table \
+        else ['(none of its recipes is in the record yet)']
+    return entry, '\n'.join(lines)
+
+
+def _ceiling_cell(stat: Optional[dict]) -> str:
+    if stat is None:
+        return '-'
+    if stat.get('n', 1) > 1:
+        return f"{stat['mean']:.1f} +- {stat['std']:.1f}"
+    return f"{stat['mean']:.1f}"
+
+
 def check_pretrained(recipes: Sequence[Tuple[str, str]],
                      sources: Dict[str, Optional[str]]) -> None:
     """Every pretrained file the trained recipes load, before the first
@@ -810,7 +1025,9 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             out_dir: str, cfg_options: Optional[dict] = None,
             log: Callable[[str], None] = print,
             set_name: Optional[str] = None, wait_s: float = 30.0,
-            train: bool = True, wait: bool = True) -> dict:
+            train: bool = True, wait: bool = True,
+            transfer_root: Optional[str] = None,
+            ceiling_record: Optional[str] = None) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -842,6 +1059,12 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             the tables) instead of waiting for them, so that a process
             goes on to its next comparison at once; a later run of the
             comparison (or ``--report-only``) tabulates them all.
+        transfer_root (str, optional): The real-fog folder of the recipes'
+            ``transfer_test`` (None: each config's own); in the record
+            when given.
+        ceiling_record (str, optional): The ``compare.json`` of the set
+            that is this set's in-domain ceiling (:data:`SET_CEILINGS`),
+            tabulated under the results (``ceiling`` in the record).
 
     Several processes may run the same comparison (same ``out_dir``) at
     once, e.g. one per core with one thread each: each run is locked by
@@ -855,6 +1078,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     sources = weights_sources(recipes)
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)
+        check_transfer(recipes, transfer_root)
         check_pretrained(recipes, sources)
     os.makedirs(out_dir, exist_ok=True)
     # seed-major: a comparison cut short still has every recipe at the
@@ -878,6 +1102,16 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: not '
                     'finished, left out (nothing is trained)')
                 continue
+            source = sources[name]
+            if not done and source is not None and not osp.isfile(
+                    result_file(out_dir, source, seed)) and \
+                    held_elsewhere(out_dir, source, seed):
+                # a test-time variant of weights still being trained
+                waiting.append((k, (name, config, seed)))
+                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: tests '
+                    f'the weights of {source!r}, which another process is '
+                    'still training, later')
+                continue
             lock = None if done else RunLock(osp.dirname(path))
             if lock is not None and not lock.acquire():
                 # another process of this comparison trains it now
@@ -900,7 +1134,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             try:
                 results[k] = run_recipe(
                     name, config, seed, budget, data_root, betas, out_dir,
-                    cfg_options, weights_of=sources[name])
+                    cfg_options, weights_of=sources[name],
+                    transfer_root=transfer_root)
             finally:
                 lock.release()
             if sources[name] is None:
@@ -939,9 +1174,16 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         record['missing'] = missing
     if in_progress:
         record['in_progress'] = in_progress
+    if transfer_root is not None:
+        record['transfer_root'] = transfer_root
+    top, ceiling_md = ceiling(set_name, ceiling_record, summary['columns'])
+    if top is not None:
+        record['ceiling'] = top
     with open(osp.join(out_dir, 'compare.json'), 'w') as f:
         json.dump(record, f, indent=1)
     markdown = to_markdown(summary)
+    if ceiling_md:
+        markdown += '\n' + ceiling_md
     if missing:
         markdown += '\n\nLeft out (not finished): ' + ', '.join(
             f'{name} seed {seed}' for name, seed in missing) + '.'

@@ -114,7 +114,9 @@ def plot(summary: dict, betas: Sequence[float], path: str,
          column: Optional[str] = None) -> str:
     """AP (or AR) vs fog density per recipe, mean +- std over seeds.
 
-    With no fog density (real data: one condition), a bar per recipe.
+    With no fog density (real data), a bar per recipe on the last
+    condition: the only one, or a second test set (``transfer_test``: real
+    fog after clear training).
 
     Args:
         summary (dict): :func:`summarize` output.
@@ -141,7 +143,7 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     xs = [0.0] + list(betas)
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     if not betas:
-        _bars(ax, summary, reference, column)
+        _bars(ax, summary, summary['conditions'][-1], column)
         fig.tight_layout()
         fig.savefig(path, dpi=120)
         plt.close(fig)

@@ -278,13 +278,14 @@ def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
 
 def fake_training(tmp_path, monkeypatch, run_recipe):
     """compare() with ``run_recipe`` in place of training, no weights
-    sources, clear val as reference, no pretrained files, no plot, and a
-    val file under ``tmp_path / 'data'``."""
+    sources, clear val as reference, no pretrained files, no second test
+    set, no plot, and a val file under ``tmp_path / 'data'``."""
     monkeypatch.setattr(rc, 'run_recipe', run_recipe)
     monkeypatch.setattr(rc, 'weights_sources',
                         lambda recipes: {n: None for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
+    monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
     monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
     ann = tmp_path / 'data' / 'annotations'
     ann.mkdir(parents=True)

@@ -45,6 +45,18 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             parts in which they differ (neck, RPN, stage IoUs) taken
             from the other (configs/pretrained/parts/); the same
             preset and columns
+  fog_transfer  does synthetic fog carry over to real fog? The stock
+            cascade and the revised CBNet trained on the CLEAR COCO street
+            photos: clear only, + CBNetAddFog augmentation, CBNet-DD on
+            synthetic foggy twins, and the dark channel prior in front of
+            the clear-only checkpoint at test time (trains nothing); each
+            tested on COCO street val and on DAWN's fog + haze val
+            (--transfer-root), box AP / AP50 and the drop; --ceiling adds
+            the realfog_pretrained record (trained on DAWN) as the ceiling
+  fog_generated_to_real  the same two models trained on the generated
+            scenes (bench preset), clear or with their depth-rendered fog
+            (beta 0.02), tested on generated clear / foggy val and on
+            DAWN's real fog (--transfer-root): rendered fog vs real fog
 
 Presets (--preset): `demo` (the default: 128x256 data, 120 iterations of
 4 images, every recipe at 1-5 AP) and `bench` (the benchmark: 256x512
@@ -52,13 +64,15 @@ data from `generate_cityscapes_like.py --preset bench`, a budget where
 recipes can be told apart; docs/accuracy.md); `coco_street` and
 `realfog_pretrained` (photos at most 640x480, batches of 2, the budgets
 of docs/accuracy.md "Real masks" and docs/robustness.md "Real fog on a
-pretrained trunk") are the default of the set of the same name. Two processes may run the
-same comparison at once (one per core, --threads 1): each run is locked
-by the process that trains it (--no-wait: a process leaves the runs
-that others train out of its table and ends, e.g. to start its next
-comparison; --report-only tabulates them later). A run saves a checkpoint every sixth of its
-iterations; a run killed mid-way resumes from it when the comparison is
-started again (its record says ``resumed_at_iter``).
+pretrained trunk") are the default of the set of the same name, as is
+`fog_transfer` (the coco_street budget, DAWN as the second test set).
+Two processes may run the same comparison at once (one per core,
+--threads 1): each run is locked by the process that trains it (--no-
+wait: a process leaves the runs that others train out of its table and
+ends, e.g. to start its next comparison; --report-only tabulates them
+later). A run saves a checkpoint every sixth of its iterations; a run
+killed mid-way resumes from it when the comparison is started again (its
+record says ``resumed_at_iter``).
 
 Recipes whose configs set ``test_condition`` (real data, like the realfog
 set) take ``--data-root`` as their data (default: the config's) and are
@@ -91,6 +105,17 @@ Examples::
         data/coco_street
     OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
         --set coco_street --data-root data/coco_street --threads 1
+    # synthetic fog to real fog: train on clear COCO street, test on both
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set fog_transfer --data-root data/coco_street \
+        --transfer-root data/dawn_fog --threads 1 \
+        --ceiling work_dirs/compare/realfog_pretrained/compare.json
+    # generated -> real: the bench data once, then the set
+    python tools/misc/generate_cityscapes_like.py \
+        data/cityscapes_like_bench --preset bench --nproc 2 --convert
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set fog_generated_to_real --transfer-root data/dawn_fog \
+        --threads 1
 """
 import argparse
 import sys
@@ -125,6 +150,14 @@ def parse_args(argv=None):
                         'converted annotations and leftImg8bit_foggy '
                         "(default: the preset's); for real-data recipes "
                         "their data (default: the config's)")
+    parser.add_argument('--transfer-root',
+                        help="the real-fog VOC folder of recipes with a "
+                        "second test set (transfer_test; default: the "
+                        "preset's, else the configs')")
+    parser.add_argument('--ceiling', metavar='COMPARE_JSON',
+                        help="the in-domain ceiling's record, tabulated "
+                        'under the results, never retrained (fog_transfer: '
+                        "the realfog_pretrained set's compare.json)")
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--iters', type=int,
                         help='training iterations per run (0: untrained)')
@@ -166,7 +199,8 @@ def parse_args(argv=None):
         args.preset = SET_PRESETS.get(args.set, 'demo')
     preset = PRESETS[args.preset]
     # data_root is filled in main(): real-data recipes take their config's
-    for key in ('iters', 'batch_size', 'warmup_iters', 'img_scale'):
+    for key in ('iters', 'batch_size', 'warmup_iters', 'img_scale',
+                'transfer_root'):
         if getattr(args, key) is None:
             setattr(args, key, getattr(preset, key))
     if args.iters < 0 or args.batch_size < 1 or not args.seeds:
@@ -215,7 +249,9 @@ def main(argv=None) -> dict:
     record = rc.compare(recipes, args.seeds, budget, data_root,
                         betas, work_dir, args.cfg_options,
                         set_name=args.set, train=not args.report_only,
-                        wait=not args.no_wait)
+                        wait=not args.no_wait,
+                        transfer_root=args.transfer_root,
+                        ceiling_record=args.ceiling)
     if 'summary' in record:  # else nothing had finished (--no-wait)
         print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
               'compare.png')

@@ -1,0 +1,265 @@
+"""The fog_transfer set (issue 44) end to end on tiny files built here:
+recipes trained on a tiny COCO-format clear set (through tools/
+dataset_converters/coco_street.py), each tested on its clear val and on a
+tiny VOC real-fog folder; the dehaze-then-detect row trains nothing and
+tests the clear row's checkpoint; the ceiling comes from a record."""
+import json
+import os
+import os.path as osp
+import platform
+import shutil
+
+import pytest
+from mmengine.config import Config
+from mmengine.runner import Runner
+from test_pretrained_sets import FAST, TEST_IN_PROCESS, fake_coco
+from test_pretrained_sets import fake_weights  # noqa: F401 (a fixture)
+from tool_helpers import load_tool
+
+from cbnet_lab import ap_drop as ad
+from cbnet_lab import config_edits as ce
+from cbnet_lab import recipe_comparison as rc
+from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+
+ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
+#: test-only row -> the row whose checkpoint it tests
+TEST_ONLY = {'DCP + Cascade Mask R-CNN, clear (test only)':
+             'Cascade Mask R-CNN, clear',
+             'DCP + CBNet revised, clear (test only)': 'CBNet revised, clear'}
+SCALE = ['--img-scale', '160', '96']
+
+
+@pytest.fixture
+def tiny_data(cityscapes_like_root, tmp_path):
+    """A tiny clear COCO street set (converted) and a tiny VOC fog folder."""
+    fake_coco(cityscapes_like_root, str(tmp_path / 'coco'))
+    load_tool('dataset_converters/coco_street.py').main(
+        [str(tmp_path / 'coco'), str(tmp_path / 'street')])
+    tiny_fog_folder(str(tmp_path / 'fog'), num_images=10)
+    return str(tmp_path / 'street'), str(tmp_path / 'fog')
+
+
+def ceiling_record(path, box_ap=(12.5, 8.0)):
+    """A saved realfog_pretrained record with its first two rows."""
+    stat = lambda v: dict(mean=v, std=0.0, n=1)  # noqa: E731
+    summary = {name: {'real fog': {'box AP': stat(ap),
+                                   'box AP50': stat(2 * ap)}}
+               for name, ap in zip(('Cascade R-CNN', 'CBNet revised'),
+                                   box_ap)}
+    with open(path, 'w') as f:
+        json.dump(dict(set='realfog_pretrained', seeds=[0],
+                       date='2026-11-27 12:47 UTC', budget={},
+                       summary=dict(conditions=['real fog'],
+                                    summary=summary)), f)
+    return str(path)
+
+
+@pytest.mark.slow
+def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
+                                     tmp_path, monkeypatch):
+    street, fog = tiny_data
+    trained, tested = [], []
+    train, evaluate = Runner.train, ad.evaluate_checkpoint
+
+    def spy_train(runner):
+        trained.append(osp.relpath(runner.work_dir, tmp_path / 'runs'))
+        return train(runner)
+
+    def spy_evaluate(cfg, checkpoint, work_dir, name, prefix='test'):
+        tested.append((osp.relpath(work_dir, tmp_path / 'runs'),
+                       osp.relpath(checkpoint, tmp_path / 'runs'),
+                       cfg.test_condition,
+                       cfg.model.data_preprocessor.type))
+        return evaluate(cfg, checkpoint, work_dir, name, prefix)
+
+    monkeypatch.setattr(Runner, 'train', spy_train)
+    monkeypatch.setattr(ad, 'evaluate_checkpoint', spy_evaluate)
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    argv = ['--set', 'fog_transfer', '--data-root', street,
+            '--transfer-root', fog, '--work-dir', str(tmp_path / 'runs'),
+            '--ceiling', ceiling_record(tmp_path / 'ceiling.json')] + \
+        SCALE + FAST + ['--cfg-options'] + TEST_IN_PROCESS
+    args = tool.parse_args(argv)
+    assert args.preset == 'fog_transfer'  # the set's own preset
+    record = tool.main(argv)
+
+    # the trained rows trained once each; the test-only rows never
+    slugs = {name: rc.slug(name) for name in ROWS}
+    assert sorted(trained) == sorted(
+        osp.join(slugs[n], 'seed0') for n in ROWS if n not in TEST_ONLY)
+    runs = {r['recipe']: r for r in record['runs']}
+    assert list(runs) == ROWS
+    for row, source in TEST_ONLY.items():
+        assert runs[row]['weights_of'] == source
+        assert runs[row]['train_time_s'] is None
+        assert not [f for f in os.listdir(tmp_path / 'runs' / slugs[row] /
+                                          'seed0') if f.endswith('.pth')]
+        # it tested the source's very checkpoint, behind the dehazer, on
+        # both sets
+        mine = [t for t in tested if t[0].startswith(slugs[row] + '/')]
+        assert [t[1:] for t in mine] == [
+            (osp.join(slugs[source], 'seed0', 'iter_2.pth'), condition,
+             'CBNetDehazeDataPreprocessor')
+            for condition in ('coco street', 'real fog')]
+    # every run: clear val of its training set, then DAWN-like real fog
+    # through the VOC folder given, boxes only there
+    for name, run in runs.items():
+        assert list(run['metrics']) == ['coco street', 'real fog']
+        assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0
+        assert 'coco/segm_mAP' not in run['metrics']['real fog']
+        assert 'coco/segm_mAP' in run['metrics']['coco street']
+    assert sum(t[2] == 'real fog' for t in tested) == len(ROWS)
+    summary = record['summary']
+    assert summary['conditions'] == ['coco street', 'real fog']
+    assert summary['columns'] == ['box AP', 'box AP50']
+    for name, run in runs.items():
+        entry = summary['summary'][name]
+        clear = run['metrics']['coco street']['coco/bbox_mAP'] * 100
+        foggy = run['metrics']['real fog']['coco/bbox_mAP'] * 100
+        assert entry['real fog']['box AP drop']['mean'] == \
+            pytest.approx(clear - foggy)
+    assert record['transfer_root'] == fog
+    # the ceiling: read from the record, beside the matching rows
+    assert record['ceiling']['rows']['Cascade Mask R-CNN'] == dict(
+        recipe='Cascade R-CNN', **{'box AP': dict(mean=12.5, std=0.0, n=1),
+                                   'box AP50': dict(mean=25.0, std=0.0,
+                                                    n=1)})
+    md = (tmp_path / 'runs' / 'compare.md').read_text()
+    assert '**real fog**' in md and '| box AP drop |' in md
+    assert '**in-domain ceiling**' in md
+    assert '| CBNet revised (beside CBNet revised) | 8.0 | 16.0 |' in md
+    assert osp.isfile(tmp_path / 'runs' / 'compare.png')
+
+    # a record restored elsewhere has the clear row's result but not its
+    # weights: the test-only row says so, and nothing is trained
+    trained.clear()
+    clear_row, dcp_row = 'Cascade Mask R-CNN, clear', ROWS[3]
+    restored = str(tmp_path / 'restored')
+    os.makedirs(osp.dirname(rc.result_file(restored, clear_row, 0)))
+    shutil.copy(rc.result_file(str(tmp_path / 'runs'), clear_row, 0),
+                rc.result_file(restored, clear_row, 0))
+    with pytest.raises(FileNotFoundError,
+                       match=r"tests the weights of 'Cascade Mask R-CNN, "
+                       r"clear', seed 0, .* not its weights"):
+        tool.main(['--set', 'fog_transfer', '--only', clear_row, dcp_row,
+                   '--data-root', street, '--transfer-root', fog,
+                   '--work-dir', restored] + SCALE + FAST +
+                  ['--cfg-options'] + TEST_IN_PROCESS)
+    assert trained == []
+
+
+@pytest.mark.slow
+def test_generated_to_real_set_end_to_end(cityscapes_like_root, tiny_data,
+                                          fake_weights,  # noqa: F811
+                                          tmp_path):
+    """Item 3: trained on the generated scenes (clear, or their depth fog),
+    tested on generated clear and foggy val, then on real fog."""
+    _, fog = tiny_data
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    record = tool.main(
+        ['--set', 'fog_generated_to_real', '--data-root',
+         cityscapes_like_root, '--transfer-root', fog, '--betas', '0.02',
+         '--work-dir', str(tmp_path / 'runs'), '--img-scale', '256', '128'] +
+        FAST + ['--cfg-options'] + TEST_IN_PROCESS)
+    names = [n for n, _ in rc.RECIPE_SETS['fog_generated_to_real']]
+    assert [r['recipe'] for r in record['runs']] == names
+    conditions = ['clear', 'foggy beta=0.02', 'real fog']
+    for run in record['runs']:
+        assert list(run['metrics']) == conditions
+        assert 'coco/segm_mAP' not in run['metrics']['real fog']
+    summary = record['summary']
+    assert summary['conditions'] == conditions
+    assert summary['columns'] == ['box AP', 'box AP50']
+    assert 'box AP drop' in summary['summary'][names[1]]['real fog']
+    assert 'ceiling' not in record
+    md = (tmp_path / 'runs' / 'compare.md').read_text()
+    assert '**foggy beta=0.02**' in md and '**real fog**' in md
+
+
+def test_a_test_only_row_whose_source_never_ran_is_a_clear_error(
+        tmp_path):
+    clear, dcp = [(n, p) for n, p in rc.resolve_recipes('fog_transfer')
+                  if n in ('Cascade Mask R-CNN, clear', ROWS[3])]
+    budget = ce.Budget(iters=2)
+    with pytest.raises(FileNotFoundError,
+                       match="has not been trained in this work dir"):
+        rc.run_recipe(dcp[0], dcp[1], 1, budget, str(tmp_path), [],
+                      str(tmp_path), weights_of=clear[0])
+    assert not osp.exists(
+        rc.checkpoint_file(str(tmp_path), dcp[0], 1, budget))
+
+
+def test_a_test_only_row_waits_for_its_source_in_other_hands(
+        tmp_path, monkeypatch):
+    """Two processes on one comparison: while another live process trains
+    the clear row, the test-only row of the same seed is deferred with it
+    (no error about missing weights)."""
+    out = str(tmp_path / 'runs')
+    recipes = [r for r in rc.resolve_recipes('fog_transfer')
+               if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
+    ran = []
+
+    def fake_run_recipe(name, config, seed, *args, **kwargs):
+        ran.append(name)
+        return dict(recipe=name, seed=seed, train_time_s=None, metrics={
+            'coco street': {'coco/bbox_mAP': 0.5},
+            'real fog': {'coco/bbox_mAP': 0.2}})
+
+    monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
+    monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
+    monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
+    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    lock = osp.dirname(rc.result_file(out, recipes[0][0], 0))
+    os.makedirs(lock)
+    with open(osp.join(lock, '.lock'), 'w') as f:
+        f.write(f'{platform.node()}:{os.getppid()}')  # a live process
+    logs = []
+    record = rc.compare(recipes, [0], ce.Budget(iters=2),
+                        str(tmp_path), [], out, log=logs.append,
+                        set_name='fog_transfer', wait=False)
+    assert ran == []
+    assert record['in_progress'] == [[recipes[0][0], 0], [recipes[1][0], 0]]
+    assert any('which another process is still training' in line
+               for line in logs)
+
+
+def test_transfer_test_is_checked(tmp_path):
+    cfg = Config(dict(test_condition='coco street', transfer_test=dict(
+        condition='real fog', data_root=str(tmp_path / 'missing'))))
+    cfg.filename = 'x.py'
+    assert ad.transfer_test(cfg)['condition'] == 'real fog'
+    with pytest.raises(FileNotFoundError, match='--transfer-root'):
+        ad.transfer_cfg(cfg)
+    # a config made to test real fog itself tests no second set after it
+    assert 'transfer_test' not in ad.real_fog_cfg(Config(dict(
+        transfer_test=dict(condition='fog', data_root=str(tmp_path)),
+        test_dataloader=dict(dataset=dict(pipeline=[])))), str(tmp_path))
+    for bad, match in (
+            (dict(data_root='d'), "non-empty 'condition'"),
+            (dict(condition='real fog'), "non-empty 'data_root'"),
+            (dict(condition='real fog', data_root='d', splt='val'),
+             r"unknown keys \['splt'\]"),
+            (dict(condition='coco street', data_root='d'),
+             'also the name')):
+        cfg.transfer_test = bad
+        with pytest.raises(ValueError, match=match):
+            ad.transfer_test(cfg)
+
+
+def test_transfer_root_and_ceiling_errors(tmp_path):
+    street = rc.resolve_recipes('coco_street')[:1]
+    transfer = rc.resolve_recipes('fog_transfer')[:1]
+    with pytest.raises(ValueError, match='no recipe sets transfer_test'):
+        rc.check_transfer(street, str(tmp_path))
+    with pytest.raises(FileNotFoundError, match='give it with'):
+        rc.check_transfer(transfer, str(tmp_path / 'none'))
+    rc.check_transfer(transfer, str(tmp_path))
+    other = tmp_path / 'other.json'
+    other.write_text(json.dumps(dict(set='coco_street', summary={})))
+    with pytest.raises(ValueError, match="not 'realfog_pretrained'"):
+        rc.ceiling('fog_transfer', str(other), ['box AP'])
+    with pytest.raises(ValueError, match='has no in-domain ceiling'):
+        rc.ceiling('coco_street', str(other), ['box AP'])
+    entry, md = rc.ceiling('fog_transfer', None, ['box AP'])
+    assert entry is None and 'not tabulated' in md
+    assert rc.ceiling('coco_street', None, ['box AP']) == (None, '')
