@@ -316,9 +316,11 @@ PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
 #: Sets that report other columns than :data:`DETECTION_COLUMNS`: real fog
 #: on a pretrained trunk adds COCO's AP per object size (DAWN's vehicles
 #: range from a few pixels to half the photo).
+BOX_SIZE_COLUMNS = metric_columns('box AP', 'box AP50', 'box AP_s',
+                                  'box AP_m', 'box AP_l')
 SET_COLUMNS = {
-    'realfog_pretrained': metric_columns('box AP', 'box AP50', 'box AP_s',
-                                         'box AP_m', 'box AP_l'),
+    'realfog_pretrained': BOX_SIZE_COLUMNS,
+    'realfog_pretrained_parts': BOX_SIZE_COLUMNS,
     # boxes: the only labels real fog (DAWN) has
     'fog_transfer': metric_columns('box AP', 'box AP50'),
     'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
@@ -338,7 +340,6 @@ SET_CEILINGS = {
         rows={'Cascade Mask R-CNN': 'Cascade R-CNN',
               'CBNet revised': 'CBNet revised'}),
 }
-SET_COLUMNS['realfog_pretrained_parts'] = SET_COLUMNS['realfog_pretrained']
 
 
 @dataclass
@@ -729,6 +730,12 @@ class RunLock:
         except FileNotFoundError:
             return None
 
+    def held_by_another(self) -> bool:
+        """Whether a live process other than this one holds the lock."""
+        holder = self.holder()
+        return holder is not None and holder != self._me() and \
+            not self._stale(holder)
+
     def _stale(self, holder: Optional[str]) -> bool:
         host, _, pid = (holder or '').rpartition(':')
         if host != platform.node() or not pid.isdigit():
@@ -935,10 +942,8 @@ def check_transfer(recipes: Sequence[Tuple[str, str]],
 
 def held_elsewhere(out_dir: str, name: str, seed: int) -> bool:
     """Whether another live process holds the lock of a run."""
-    lock = RunLock(osp.dirname(result_file(out_dir, name, seed)))
-    holder = lock.holder()
-    return holder is not None and holder != lock._me() and \
-        not lock._stale(holder)
+    return RunLock(osp.dirname(result_file(out_dir, name,
+                                           seed))).held_by_another()
 
 
 def ceiling(set_name: Optional[str], record_path: Optional[str],
