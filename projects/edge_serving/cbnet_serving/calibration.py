@@ -124,12 +124,12 @@ class ScoreCalibration:
             order = np.argsort(s, kind='stable')
             s, h = s[order], h[order]
             y = isotonic_regression(h, increasing=True).x
-            # one knot per distinct score: its fitted precision (equal
-            # scores share one value in an isotonic fit of sorted data
-            # only up to ties: take their mean)
+            # one knot per distinct score: the mean fit of its detections
+            # (equal scores in a stable sort can get different fitted
+            # values; means of consecutive runs keep the fit increasing)
             u, inv = np.unique(s, return_inverse=True)
             val = np.bincount(inv, weights=y) / np.bincount(inv)
-            return u.tolist(), np.maximum.accumulate(val).tolist()
+            return u.tolist(), val.tolist()
 
         maps = {'*': knots(pooled)}
         for name, pairs in by_class.items():

@@ -298,34 +298,38 @@ def offload_curve(local_dir: str,
                          'own scores: leave out auto_dir or calibrate')
     local, server = read_run(local_dir), read_run(server_dir)
     frames = check_runs(local, server)
-    gt = stream_annotations(ann_file, frames, conditions)
+    rule = conditions
+    gt = stream_annotations(ann_file, frames, rule)
     local_cls = _classes(local, 'local', classes)
     server_cls = _classes(server, 'server', classes)
-    cond = [frame_condition(f, conditions) for f in frames]
-    preds = {side: [run['records'][f]['prediction'] for f in frames]
-             for side, run in (('local', local), ('server', server))}
+    cond = [frame_condition(f, rule) for f in frames]
+    conditions = condition_order(cond)
+    # each model's prediction per frame (its scores calibrated on request)
+    stream = {side: [run['records'][f]['prediction'] for f in frames]
+              for side, run in (('local', local), ('server', server))}
     calibration = None
     if calibrate:
         from .calibration import cross_fitted
         calibration = {}
         for side, cls in (('local', local_cls), ('server', server_cls)):
             progress(f'calibrating the {side} model\'s scores')
-            preds[side], calibration[side] = cross_fitted(
-                preds[side], gt, cls)
-    rule, conditions = conditions, condition_order(cond)
+            stream[side], calibration[side] = cross_fitted(
+                stream[side], gt, cls)
     t = np.array([local['records'][f]['transmission'] for f in frames])
     if thresholds is None:
         thresholds = sorted(set(np.round(
             np.quantile(t, np.linspace(0.1, 0.9, 9)), 4).tolist()))
 
-    stream = preds
-
-    def subset(keep):
-        sub = dict(gt, images=[gt['images'][i] for i in keep])
-        ids = {img['id'] for img in sub['images']}
-        sub['annotations'] = [a for a in gt['annotations']
-                              if a['image_id'] in ids]
-        return sub
+    # each condition's frames and their ground truth, once
+    members = {c: [i for i, k in enumerate(cond) if k == c]
+               for c in conditions}
+    subsets = {}
+    for c, keep in members.items():
+        ids = {gt['images'][i]['id'] for i in keep}
+        subsets[c] = dict(
+            gt, images=[gt['images'][i] for i in keep],
+            annotations=[a for a in gt['annotations']
+                         if a['image_id'] in ids])
 
     def row(name, offload, preds=None, per_class=None, seconds=None):
         offload = np.asarray(offload, bool)
@@ -337,13 +341,12 @@ def offload_curve(local_dir: str,
                        local['records'][f]['seconds']
                        for f, o in zip(frames, offload)]
         progress(f'scoring {name} ({offload.mean():.0%} offloaded)')
-        by = {c: float(np.mean([o for o, k in zip(offload, cond) if k == c]))
-              for c in conditions}
-        per_cond = {}
-        for c in conditions:
-            keep = [i for i, k in enumerate(cond) if k == c]
-            per_cond[c] = score(subset(keep), [preds[i] for i in keep],
-                                [per_class[i] for i in keep], metrics)
+        by = {c: float(np.mean(offload[keep]))
+              for c, keep in members.items()}
+        per_cond = {
+            c: score(subsets[c], [preds[i] for i in keep],
+                     [per_class[i] for i in keep], metrics)
+            for c, keep in members.items()}
         return dict(policy=name, offload_rate=float(offload.mean()),
                     offloaded=by, seconds=float(np.mean(seconds)),
                     condition_ap=per_cond,
@@ -361,7 +364,8 @@ def offload_curve(local_dir: str,
             policy_offloads(local['records'], frames,
                             policy['transmission_thr'],
                             policy['min_confidence'])))
-    rows.append(row('always server', np.ones(n)))
+    server_only = row('always server', np.ones(n))
+    rows.append(server_only)
     # random offloading at each rate the haze rule reached
     for count in sorted({int(r['offload_rate'] * n + 0.5) for r in rows}
                         - {0, n}):
@@ -403,20 +407,17 @@ def offload_curve(local_dir: str,
             seconds=[r['seconds'] for r in recs]))
         rows[-1]['fallbacks'] = sum(r['where'] == 'local-fallback'
                                     for r in recs)
-    by_condition = {}
-    for c in conditions:
-        keep = [i for i, k in enumerate(cond) if k == c]
-        by_condition[c] = {
-            side: score(subset(keep), [stream[side][i] for i in keep], cls,
-                        metrics)
-            for side, cls in (('local', local_cls), ('server', server_cls))}
+    # each model alone per condition: the always-local and always-server
+    # rows' scores on that condition's frames
+    by_condition = {c: dict(local=rows[0]['condition_ap'][c],
+                            server=server_only['condition_ap'][c])
+                    for c in conditions}
     return dict(frames=n, conditions=conditions, rows=rows,
                 by_condition=by_condition, calibrated=bool(calibrate),
                 condition_rule=rule,
                 calibration=calibration,
-                transmission={c: float(np.mean(
-                    [x for x, k in zip(t, cond) if k == c]))
-                    for c in conditions})
+                transmission={c: float(np.mean(t[keep]))
+                              for c, keep in members.items()})
 
 
 def to_markdown(result: Dict) -> str:
