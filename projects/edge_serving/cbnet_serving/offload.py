@@ -265,6 +265,7 @@ def offload_curve(local_dir: str,
                   server_dir: str,
                   ann_file: str,
                   thresholds: Optional[Sequence[float]] = None,
+                  confidences: Optional[Sequence[float]] = None,
                   policy: Optional[Dict] = None,
                   auto_dir: Optional[str] = None,
                   random_seeds: Sequence[int] = (0, 1, 2),
@@ -275,9 +276,19 @@ def offload_curve(local_dir: str,
                   progress=print) -> Dict:
     """Score always-local, always-server, the haze rule at each
     ``thresholds`` (``min_confidence`` 0; default: the deciles of the
-    frames' transmission), the shipped ``policy``
-    (``transmission_thr``, ``min_confidence``), random offloading at the
-    same rates, and optionally a live ``--mode auto`` run.
+    frames' transmission), the confidence rule at each ``confidences``
+    (offload when the local top score is below; no haze rule; default:
+    the deciles of the local top scores), the shipped ``policy``
+    (``transmission_thr``, ``min_confidence``: both rules), random
+    offloading at the same rates, and optionally a live ``--mode auto``
+    run.
+
+    Every row has ``rule`` (``local``, ``haze``, ``confidence``,
+    ``shipped``, ``server``, ``random``, ``auto``); rows at default
+    thresholds also ``quantile`` (the decile the threshold is), so that
+    runs of several local models line up (:mod:`.offload_seeds`); a row
+    that offloads some frames but not all has ``random``: the AP keys of
+    random offloading of as many frames (mean of ``random_seeds``).
 
     ``conditions``: how a frame's condition (and its annotations) is
     found, :data:`CONDITION_RULES`.
@@ -316,9 +327,10 @@ def offload_curve(local_dir: str,
             stream[side], calibration[side] = cross_fitted(
                 stream[side], gt, cls)
     t = np.array([local['records'][f]['transmission'] for f in frames])
-    if thresholds is None:
-        thresholds = sorted(set(np.round(
-            np.quantile(t, np.linspace(0.1, 0.9, 9)), 4).tolist()))
+    top = np.array([local['records'][f]['local_top_score']
+                    for f in frames], float)
+    haze_levels = _levels(t, thresholds)
+    conf_levels = _levels(top, confidences)
 
     # each condition's frames and their ground truth, once
     members = {c: [i for i, k in enumerate(cond) if k == c]
@@ -331,7 +343,8 @@ def offload_curve(local_dir: str,
             annotations=[a for a in gt['annotations']
                          if a['image_id'] in ids])
 
-    def row(name, offload, preds=None, per_class=None, seconds=None):
+    def row(name, offload, preds=None, per_class=None, seconds=None,
+            rule=None, quantile=None):
         offload = np.asarray(offload, bool)
         if preds is None:
             preds = [stream['server'][i] if o else stream['local'][i]
@@ -347,26 +360,37 @@ def offload_curve(local_dir: str,
             c: score(subsets[c], [preds[i] for i in keep],
                      [per_class[i] for i in keep], metrics)
             for c, keep in members.items()}
-        return dict(policy=name, offload_rate=float(offload.mean()),
+        extra = {} if quantile is None else dict(quantile=quantile)
+        return dict(policy=name, rule=rule, **extra,
+                    offload_rate=float(offload.mean()),
                     offloaded=by, seconds=float(np.mean(seconds)),
                     condition_ap=per_cond,
                     **score(gt, preds, per_class, metrics))
 
     n = len(frames)
-    rows = [row('always local', np.zeros(n))]
-    for thr in thresholds:
+    rows = [row('always local', np.zeros(n), rule='local')]
+    for thr, q in haze_levels:
         rows.append(row(f'haze: transmission < {thr:g}',
-                        policy_offloads(local['records'], frames, thr, 0.0)))
+                        policy_offloads(local['records'], frames, thr, 0.0),
+                        rule='haze', quantile=q))
+    for conf, q in conf_levels:
+        # transmission_thr 0: no frame is hazier than that, only the
+        # local model's confidence decides
+        rows.append(row(f'confidence: top score < {conf:g}',
+                        policy_offloads(local['records'], frames, 0.0, conf),
+                        rule='confidence', quantile=q))
     if policy is not None:
         rows.append(row(
             f"shipped: transmission < {policy['transmission_thr']:g} or "
             f"top score < {policy['min_confidence']:g}",
             policy_offloads(local['records'], frames,
                             policy['transmission_thr'],
-                            policy['min_confidence'])))
-    server_only = row('always server', np.ones(n))
+                            policy['min_confidence']), rule='shipped'))
+    server_only = row('always server', np.ones(n), rule='server')
     rows.append(server_only)
-    # random offloading at each rate the haze rule reached
+    # random offloading at each rate a rule reached
+    policies = list(rows)
+    random_at = {}
     for count in sorted({int(r['offload_rate'] * n + 0.5) for r in rows}
                         - {0, n}):
         runs = []
@@ -386,9 +410,16 @@ def offload_curve(local_dir: str,
             for c in conditions}
         mean['policy'] = (f'random {count}/{n} (mean of '
                           f'{len(runs)} seeds)')
+        mean['rule'] = 'random'
         mean['std'] = {k: float(np.std([r[k] for r in runs]))
                        for k in ('bbox_mAP', 'segm_mAP') if k in runs[0]}
         rows.append(mean)
+        random_at[count] = mean
+    for r in policies:
+        count = int(r['offload_rate'] * n + 0.5)
+        if count in random_at:
+            r['random'] = {k: v for k, v in random_at[count].items()
+                           if k.startswith(('bbox_', 'segm_'))}
     if auto_dir is not None:
         auto = read_run(auto_dir)
         missing = sorted(set(frames) - set(auto['records']))
@@ -404,7 +435,7 @@ def offload_curve(local_dir: str,
             per_class=[_classes(auto, 'server', classes)
                        if r['where'] == 'server' else auto_cls
                        for r in recs],
-            seconds=[r['seconds'] for r in recs]))
+            seconds=[r['seconds'] for r in recs], rule='auto'))
         rows[-1]['fallbacks'] = sum(r['where'] == 'local-fallback'
                                     for r in recs)
     # each model alone per condition: the always-local and always-server
@@ -420,6 +451,18 @@ def offload_curve(local_dir: str,
                               for c, keep in members.items()})
 
 
+def _levels(values: np.ndarray, given: Optional[Sequence[float]]):
+    """``(threshold, quantile)`` pairs: ``given`` thresholds (quantile
+    None), or the deciles of ``values`` (rounded to 4 places; a threshold
+    two deciles share is kept once, with the lower decile)."""
+    if given is not None:
+        return [(float(v), None) for v in given]
+    out = {}
+    for q in np.round(np.linspace(0.1, 0.9, 9), 1).tolist():
+        out.setdefault(round(float(np.quantile(values, q)), 4), q)
+    return sorted(out.items())
+
+
 def to_markdown(result: Dict) -> str:
     """The offload table (one row per policy) and the per-condition AP of
     the two models."""
@@ -432,7 +475,8 @@ def to_markdown(result: Dict) -> str:
     by_cond = all('condition_ap' in r for r in result['rows'])
     head = [h for _, h in keys[:2]] + [f'offloaded {c}' for c in conds] + \
         [h for _, h in keys[2:]] + \
-        ([f'box AP {c}' for c in conds] if by_cond else [])
+        ([f'box AP {c}' for c in conds] if by_cond else []) + \
+        ['box AP, random at that rate']
     rows = []
     for r in result['rows']:
         cells = [r['policy'], f"{r['offload_rate']:.0%}"]
@@ -445,6 +489,8 @@ def to_markdown(result: Dict) -> str:
         if by_cond:
             cells += [f"{r['condition_ap'][c]['bbox_mAP']:.1f}"
                       for c in conds]
+        cells.append(f"{r['random']['bbox_mAP']:.1f}" if 'random' in r
+                     else '')
         rows.append(cells)
     lines = (['Scores calibrated per model (cross-fitted isotonic '
               'score -> precision maps).', ''] if result.get('calibrated')

@@ -9,6 +9,7 @@ Usage::
         --input FRAMES --out-dir OUT/server --mode server
     python projects/edge_serving/tools/offload_eval.py OUT/local OUT/server \
         --ann ANN_JSON [--auto OUT/auto] [--thresholds 0.5 0.6 0.7] \
+        [--confidences 0.3 0.5] \
         [--router-cfg projects/edge_serving/tools/edge_router.py] \
         [--calibrate] [--out-dir OUT]
 
@@ -33,6 +34,9 @@ def parse_args(argv=None):
     p.add_argument('--thresholds', type=float, nargs='+',
                    help='transmission thresholds of the haze rule '
                    '(default: deciles of the frames\' transmission)')
+    p.add_argument('--confidences', type=float, nargs='+',
+                   help='local top-score thresholds of the confidence rule '
+                   '(default: deciles of the local top scores)')
     p.add_argument('--router-cfg', default=osp.join(here, 'edge_router.py'),
                    help='its transmission_thr / min_confidence are the '
                    '"shipped" row')
@@ -63,6 +67,7 @@ def main(argv=None):
         **dict(Config.fromfile(args.router_cfg).get('router', {})))
     result = offload_curve(
         args.local, args.server, args.ann, thresholds=args.thresholds,
+        confidences=args.confidences,
         policy=dict(transmission_thr=router.transmission_thr,
                     min_confidence=router.min_confidence),
         auto_dir=args.auto,

@@ -270,3 +270,48 @@ def test_offload_eval_cli(runs, capsys):
     assert any(r['policy'].startswith('shipped: transmission < 0.6 or '
                                       'top score < 0.3') for r in res['rows'])
     assert (runs['tmp'] / 'o' / 'offload.md').read_text() in out
+
+
+def test_confidence_rule_and_random_control_per_row(runs):
+    res = offload_curve(runs['local'], runs['server'], runs['ann'],
+                        thresholds=[0.6], confidences=[0.5, 0.1],
+                        random_seeds=(0, 1), progress=lambda *_: None)
+    rows = {r['policy']: r for r in res['rows']}
+    # the local top score is 0.2 on the foggy frames, 0.9 on clear ones
+    conf = rows['confidence: top score < 0.5']
+    assert conf['rule'] == 'confidence' and 'quantile' not in conf
+    assert conf['offloaded'] == {'clear': 0.0, '0.02': 1.0}
+    assert conf['segm_mAP'] == pytest.approx(100)
+    assert rows['confidence: top score < 0.1']['offload_rate'] == 0
+    # a row offloading 2 of 4 frames carries random offloading of 2
+    rand = rows['random 2/4 (mean of 2 seeds)']
+    assert conf['random'] == {k: v for k, v in rand.items()
+                              if k.startswith(('bbox_', 'segm_'))}
+    assert rows['haze: transmission < 0.6']['random'] == conf['random']
+    # nothing or everything offloaded: no control
+    assert 'random' not in rows['always local']
+    assert 'random' not in rows['always server']
+    assert 'random' not in rows['confidence: top score < 0.1']
+    assert [r['rule'] for r in res['rows']] == [
+        'local', 'haze', 'confidence', 'confidence', 'server', 'random']
+    table = to_markdown(res)
+    assert table.splitlines()[0].endswith('| box AP, random at that rate |')
+    assert f"| {rand['bbox_mAP']:.1f} |" in table
+
+
+def test_default_levels_are_deciles(runs):
+    res = offload_curve(runs['local'], runs['server'], runs['ann'],
+                        random_seeds=(0, ), progress=lambda *_: None)
+    haze = [r for r in res['rows'] if r['rule'] == 'haze']
+    conf = [r for r in res['rows'] if r['rule'] == 'confidence']
+    t = [0.4, 0.4, 0.9, 0.9]
+    want = {}
+    for q in np.round(np.linspace(0.1, 0.9, 9), 1):
+        want.setdefault(round(float(np.quantile(t, q)), 4), float(q))
+    assert [(r['policy'], r['quantile']) for r in haze] == [
+        (f'haze: transmission < {thr:g}', q)
+        for thr, q in sorted(want.items())]
+    # the top scores (0.2 / 0.9) split the same way as the transmission
+    assert [r['quantile'] for r in conf] == [r['quantile'] for r in haze]
+    assert [r['offload_rate'] for r in conf] == \
+        [r['offload_rate'] for r in haze]
