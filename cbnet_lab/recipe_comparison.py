@@ -243,6 +243,20 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet revised -IoU .5/.7/.9', 'pretrained/parts/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft_dawn-fog.py'),
     ],
+    # fine-tuning settings on real fog: the two question rows with the
+    # trunk at the full lr instead of a tenth (configs/pretrained/finetune/;
+    # the reference rows keep their realfog_pretrained names, so runs of
+    # that set's work dir are reused)
+    'realfog_pretrained_finetune': [
+        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
+         'ft_dawn-fog.py'),
+        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
+         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
+         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
+        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
+         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+    ],
     # issue 44: does training with synthetic fog carry over to real fog?
     # Trained on the CLEAR COCO street photos (with their masks: CBNet-DD
     # distils mask logits), tested on COCO street val (clear) and on DAWN's
@@ -321,6 +335,7 @@ BOX_SIZE_COLUMNS = metric_columns('box AP', 'box AP50', 'box AP_s',
 SET_COLUMNS = {
     'realfog_pretrained': BOX_SIZE_COLUMNS,
     'realfog_pretrained_parts': BOX_SIZE_COLUMNS,
+    'realfog_pretrained_finetune': BOX_SIZE_COLUMNS,
     # boxes: the only labels real fog (DAWN) has
     'fog_transfer': metric_columns('box AP', 'box AP50'),
     'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
@@ -424,6 +439,7 @@ PRESETS: Dict[str, Preset] = {
 #: The preset a set runs with when ``--preset`` is not given.
 SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
                'realfog_pretrained_parts': 'realfog_pretrained',
+               'realfog_pretrained_finetune': 'realfog_pretrained',
                'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
                'fog_generated_to_real': 'fog_generated_to_real'}
 

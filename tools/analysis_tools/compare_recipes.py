@@ -45,6 +45,11 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             parts in which they differ (neck, RPN, stage IoUs) taken
             from the other (configs/pretrained/parts/); the same
             preset and columns
+  realfog_pretrained_finetune  the same two recipes with the trunk at
+            the full lr (lr_mult 1) instead of a tenth
+            (configs/pretrained/finetune/); the same preset and columns,
+            the two recipes' runs reused from a realfog_pretrained
+            work dir
   fog_transfer  does synthetic fog carry over to real fog? The stock
             cascade and the revised CBNet trained on the CLEAR COCO street
             photos: clear only, + CBNetAddFog augmentation, CBNet-DD on

@@ -124,6 +124,20 @@ SETS = {
                   'test_dataloader.persistent_workers=False'],
         dry_needs=[],
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
+    # the trunk at the full lr on the two question recipes
+    # (configs/pretrained/finetune/): --sets realfog_pretrained_finetune
+    'realfog_pretrained_finetune': dict(
+        data='dawn_fog',
+        args=['--seeds', '0', '1', '2'],
+        needs=[],
+        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
+                  '--batch-size', '2', '--num-workers', '0',
+                  '--only', 'Cascade R-CNN, trunk lr x1', '--img-scale',
+                  '160', '96', '--cfg-options',
+                  'test_dataloader.num_workers=0',
+                  'test_dataloader.persistent_workers=False'],
+        dry_needs=[],
+        tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
     # the converted split with the photos copied (a link would travel as
     # a link): tools/dataset_converters/coco_street.py SRC
     # data/device/coco_street --copy
