@@ -211,6 +211,36 @@ def test_load_test_cli(server, tmp_path):
     levels = json.load(open(out))['levels']
     assert [lv['concurrency'] for lv in levels] == [1, 2]
     assert all(lv['errors'] == 0 and lv['p50_s'] > 0 for lv in levels)
+    # a folder of real-format frames (a JPEG and a PNG, two sizes), each
+    # sent as its file's bytes in turn
+    frames = tmp_path / 'frames' / 'fog'
+    frames.mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    cv2.imwrite(str(frames / 'a.jpg'),
+                rng.integers(0, 256, (48, 64, 3)).astype(np.uint8))
+    cv2.imwrite(str(frames / 'b.png'),
+                rng.integers(0, 256, (40, 72, 3)).astype(np.uint8))
+    load_test.main([server['url'], '--images', str(tmp_path / 'frames'),
+                    '--concurrency', '2', '--requests', '3', '--out',
+                    str(out)])
+    res = json.load(open(out))
+    assert res['images'] == 2 and res['image_shapes'] == [[40, 72],
+                                                          [48, 64]]
+    assert res['levels'][0]['errors'] == 0
+
+
+def test_load_test_bad_input(tmp_path):
+    load_test = load_tool('projects/edge_serving/tools/load_test.py')
+    with pytest.raises(FileNotFoundError, match='no images'):
+        load_test.main(['http://127.0.0.1:9', '--images', str(tmp_path)])
+    (tmp_path / 'broken.jpg').write_bytes(b'not a jpeg')
+    with pytest.raises(ValueError, match='cannot decode'):
+        load_test.main(['http://127.0.0.1:9', '--images', str(tmp_path)])
+    with pytest.raises(FileNotFoundError, match='cannot read --image'):
+        load_test.main(['http://127.0.0.1:9', '--image',
+                        str(tmp_path / 'none.png')])
+    with pytest.raises(SystemExit):  # one source of images at a time
+        load_test.parse_args(['u', '--image', 'a.png', '--images', 'b'])
 
 
 def wait_until_down(url, timeout_s=30):
