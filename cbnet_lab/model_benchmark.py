@@ -21,7 +21,7 @@ PROPOSALS = dict(
     fixed='one fixed, realistic proposal set for every model '
     '(realistic_proposals), as many per image as its RPN keeps at test '
     'time (test_cfg.rpn.max_per_img: the top ones of the same 1000)',
-    model="each random-weight RPN's own proposals")
+    model="each model's own RPN's proposals")
 #: the reference row of the ratios
 REFERENCE = 'cascade-mask-rcnn_swin-s'
 
@@ -315,10 +315,18 @@ def markdown(meta, results, scaling):
         v = meta.get(key)
         return '-' if not v else ' / '.join(f'{x:.2f}' for x in v)
 
+    trained = sorted(n for n, r in results.items() if r.get('checkpoint'))
+    if not trained:
+        weights = 'random weights'
+    elif len(trained) == len(results):
+        weights = 'trained weights (checkpoints below)'
+    else:
+        weights = (f'trained weights for {", ".join(trained)} (checkpoints '
+                   'below), random for the others')
     lines = [
         f'Input {h}x{w}, {meta["num_items"]} instances per image (training)'
         f', {meta["repeats"]} timed repeats after {meta["warmup"]} warm-up, '
-        f'random weights; inference RoI heads on '
+        f'{weights}; inference RoI heads on '
         f'{PROPOSALS[meta.get("proposals", "model")]}.' +
         (' PARTIAL: the run stopped before its end; the missing cells were '
          'not measured.' if meta.get('partial') else ''), '',

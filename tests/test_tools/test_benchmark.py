@@ -590,3 +590,13 @@ def test_edge_suite_end_to_end_on_a_tiny_frame(tmp_path):
     assert f'| {EDGE} |' in md and '| 180x320 |' in md
     assert 'latency / ' + EDGE in md and 'load average' in md
     assert 'frame.png' in md
+    assert md.startswith('Input 45x80') and ', random weights;' in md
+    # the header says which models had trained weights
+    from cbnet_lab.model_benchmark import markdown
+    results[EDGE]['checkpoint'] = 'edge.pth'
+    head = markdown(meta, results, record['scaling']).splitlines()[0]
+    assert f'trained weights for {EDGE} (checkpoints below), random for ' \
+        'the others;' in head
+    results[SERVER]['checkpoint'] = 'server.pth'
+    head = markdown(meta, results, record['scaling']).splitlines()[0]
+    assert 'trained weights (checkpoints below);' in head

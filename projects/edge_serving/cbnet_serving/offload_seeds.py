@@ -6,7 +6,7 @@ rows are lined up by rule and level, not by threshold: the haze and
 confidence rules at default thresholds sit at the deciles of what each
 run measured, so "confidence, decile 0.3" is the 30 % least confident
 frames of each seed's own edge model. Each row: mean +- std over the
-seeds of the offload rate, box AP, box AP50, the box AP of random
+seeds (sample std) of the offload rate, box AP, box AP50, the box AP of random
 offloading at the same rate, the gain over it (per seed, then averaged),
 the time per frame and the box AP on each condition's frames.
 """
@@ -34,7 +34,9 @@ def row_key(row: Dict) -> str:
 
 
 def _stat(values: Sequence[float]) -> Dict:
-    return dict(mean=float(np.mean(values)), std=float(np.std(values)))
+    # the sample std (n - 1), as compare_recipes.py's tables give it
+    return dict(mean=float(np.mean(values)),
+                std=float(np.std(values, ddof=1)))
 
 
 def combine(results: Sequence[Dict], names: Sequence[str] = None) -> Dict:
@@ -104,7 +106,7 @@ def to_markdown(table: Dict) -> str:
                   if 'gain_over_random' in r else '',
                   ms(r['seconds'], '.3f')]
         rows.append(cells)
-    lines = [f"{len(table['seeds'])} seeds of the local model "
+    lines = [f"{len(table['seeds'])} seeds "
              f"({', '.join(map(str, table['seeds']))}), "
              f"{table['frames']} frames"
              + (', scores calibrated per model' if table['calibrated']

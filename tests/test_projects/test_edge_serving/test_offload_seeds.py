@@ -41,7 +41,8 @@ def test_combine_is_the_mean_and_std_of_the_seeds(two_seeds):
                for res in two_seeds]
         for k in ('bbox_mAP', 'offload_rate', 'seconds'):
             assert r[k]['mean'] == pytest.approx(np.mean([p[k] for p in per]))
-            assert r[k]['std'] == pytest.approx(np.std([p[k] for p in per]))
+            assert r[k]['std'] == pytest.approx(
+                np.std([p[k] for p in per], ddof=1))
         fog = [p['condition_ap']['0.02']['bbox_mAP'] for p in per]
         assert r['condition_ap']['0.02']['mean'] == pytest.approx(
             np.mean(fog))
@@ -55,7 +56,7 @@ def test_combine_is_the_mean_and_std_of_the_seeds(two_seeds):
     assert per[0]['bbox_mAP'] == pytest.approx(100) and gains[0] > 0
     assert 'random_bbox_mAP' not in rows['always local']
     md = to_markdown(table)
-    assert md.startswith('2 seeds of the local model (a, b), 4 frames')
+    assert md.startswith('2 seeds (a, b), 4 frames')
     assert '| always server | 100 +- 0 % | 100.0 +- 0.0 |' in md
 
 
