@@ -76,6 +76,7 @@ def main(argv=None):
     paths = write(result, args.out_dir or args.local)
     print(to_markdown(result))
     print(f"written: {paths['json']}, {paths['markdown']}")
+    return result
 
 
 if __name__ == '__main__':

@@ -201,6 +201,64 @@ def test_route_cli_over_a_folder(server, demo_ckpt, frames, tmp_path):
     assert len(run['server']['classes']) == 8
 
 
+def test_router_end_to_end_on_a_real_format_stream(server, demo_ckpt,
+                                                   tmp_path):
+    """make_stream.py (a VOC fog folder + a COCO file of photos, the real
+    data's formats) -> route.py local, server and auto against the live
+    server -> offload_eval.py --conditions folder. Local and server run
+    the same model and weights here, so every policy must score what
+    always-local scores: whichever frames are offloaded, the predictions
+    are the same."""
+    from test_stream import tiny_coco
+
+    from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+    fog = str(tmp_path / 'fog')
+    tiny_fog_folder(fog, num_images=10)
+    ann, imgs = tiny_coco(str(tmp_path / 'coco'))
+    stream = load_tool('projects/edge_serving/tools/make_stream.py').main(
+        [str(tmp_path / 'stream'), '--voc', f'fog={fog}', '--coco',
+         f'clear={ann}:{imgs}'])
+    runs = {}
+    for mode in ('local', 'server', 'auto'):
+        runs[mode] = str(tmp_path / mode)
+        subprocess.run(
+            [sys.executable, osp.join(TOOLS, 'route.py'), DEMO, demo_ckpt,
+             '--input', stream['frames'],
+             '--out-dir', runs[mode], '--server-url', server['url'],
+             '--mode', mode, '--timeout-s', '60'],
+            cwd=ROOT, check=True, timeout=300,
+            env=dict(os.environ, OMP_NUM_THREADS='1'))
+    # the server answered each photo (JPEGs of the COCO file, the VOC
+    # folder's images) as the local model did
+    recs = {m: {json.loads(x)['frame']: json.loads(x) for x in
+                open(osp.join(runs[m], 'results.jsonl'))}
+            for m in ('local', 'server')}
+    assert sorted(recs['local']) == sorted(recs['server'])
+    assert any(f.endswith('.jpg') for f in recs['local'])
+    assert {r['where'] for r in recs['server'].values()} == {'server'}
+    boxes = 0
+    for f, r in recs['local'].items():
+        a, b = r['prediction'], recs['server'][f]['prediction']
+        assert a['labels'] == b['labels'], f
+        np.testing.assert_allclose(a['bboxes'], b['bboxes'], atol=1e-2)
+        boxes += len(a['bboxes'])
+    assert boxes > 0  # the check above compared something
+    res = load_tool('projects/edge_serving/tools/offload_eval.py').main(
+        [runs['local'], runs['server'], '--ann', stream['ann_file'],
+         '--conditions', 'folder', '--boxes-only', '--auto', runs['auto'],
+         '--out-dir', str(tmp_path / 'eval')])
+    n = sum(stream['counts'].values())
+    assert res['frames'] == n == 6 and res['conditions'] == ['clear', 'fog']
+    rows = {r['policy']: r for r in res['rows']}
+    live = rows['live auto run (route.py --mode auto)']
+    assert live['fallbacks'] == 0
+    base = rows['always local']['bbox_mAP']
+    for r in res['rows']:
+        assert r['bbox_mAP'] == pytest.approx(base, abs=1e-6), r['policy']
+    assert {r['rule'] for r in res['rows']} >= {
+        'local', 'haze', 'confidence', 'shipped', 'server', 'auto'}
+
+
 def test_load_test_cli(server, tmp_path):
     """projects/edge_serving/tools/load_test.py (the docs' measurement) on
     a small image."""
