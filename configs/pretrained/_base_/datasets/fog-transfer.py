@@ -30,9 +30,9 @@ transfer_twin = dict(type='CBNetAddFoggyTwin', beta=transfer_fog_beta)
 # student (the clear row's model) and data preprocessor. The teacher
 # starts as a copy of the student (the paper config's
 # teacher_checkpoint=None) and keeps 99 % of itself each step: the paper's
-# 0.999 averages over ~1000 steps, more than the 430-iteration budget (at
-# 0.999 the teacher would still be 0.999^430 = 65 % its untrained heads at
-# the end); 0.99 forgets them within ~100 steps.
+# 0.999 averages over ~1000 steps, most of the 1290-iteration budget (at
+# 0.999 the teacher would still be 0.999^1290 = 28 % its untrained heads
+# at the end); 0.99 forgets them within ~100 steps.
 transfer_distiller = dict(
     type='CBNetDistiller',
     distill_loss=dict(type='CBNetDistillLoss', loss_weight=1.0),
