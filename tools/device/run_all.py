@@ -93,8 +93,9 @@ SETS = {
                   'test_dataloader.persistent_workers=False'],
         dry_needs=[],
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
-    # The pretrained-trunk sets at their CPU presets' budgets (12 epochs,
-    # batch 2, 640x480: cbnet_lab/recipe_comparison.py), so the device's
+    # The pretrained-trunk sets at their CPU presets' budgets (12 epochs
+    # on DAWN, 36 on COCO street, batch 2, 640x480:
+    # cbnet_lab/recipe_comparison.py), so the device's
     # seeds merge with the CPU's into one table (--restore); a longer
     # budget is a new table: add --iters N. They need the converted
     # trunk: --pretrained DIR (CBNET_PRETRAINED_DIR=DIR python
