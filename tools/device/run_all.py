@@ -71,6 +71,23 @@ ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 #: ``coco_street`` is the second call's, ``--sets coco_street``).
 DEFAULT_SETS = ['realfog_pretrained']
 
+def _dawn_fog_set(dry_only):
+    """A set on DAWN's fog at its preset's budget, 3 seeds, whose dry run
+    trains the one row ``dry_only`` for 2 iterations on a tiny VOC
+    folder."""
+    return dict(
+        data='dawn_fog',
+        args=['--seeds', '0', '1', '2'],
+        needs=[],
+        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
+                  '--batch-size', '2', '--num-workers', '0',
+                  '--only', dry_only, '--img-scale', '160', '96',
+                  '--cfg-options', 'test_dataloader.num_workers=0',
+                  'test_dataloader.persistent_workers=False'],
+        dry_needs=[],
+        tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder')
+
+
 #: Per set: ``data`` (its folder under ``--data``), ``args`` (the
 #: compare_recipes.py budget on the device), ``needs`` (files, relative to
 #: the repository, the set's recipes read: carried with the call),
@@ -113,32 +130,11 @@ SETS = {
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
     # the parts of the two real-fog recipes (configs/pretrained/parts/),
     # same data and budget: --sets realfog_pretrained_parts
-    'realfog_pretrained_parts': dict(
-        data='dawn_fog',
-        args=['--seeds', '0', '1', '2'],
-        needs=[],
-        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
-                  '--batch-size', '2', '--num-workers', '0',
-                  '--only', 'Cascade R-CNN +IoU .5/.7/.9', '--img-scale',
-                  '160', '96', '--cfg-options',
-                  'test_dataloader.num_workers=0',
-                  'test_dataloader.persistent_workers=False'],
-        dry_needs=[],
-        tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
+    'realfog_pretrained_parts': _dawn_fog_set('Cascade R-CNN +IoU .5/.7/.9'),
     # the trunk at the full lr on the two question recipes
     # (configs/pretrained/finetune/): --sets realfog_pretrained_finetune
-    'realfog_pretrained_finetune': dict(
-        data='dawn_fog',
-        args=['--seeds', '0', '1', '2'],
-        needs=[],
-        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
-                  '--batch-size', '2', '--num-workers', '0',
-                  '--only', 'Cascade R-CNN, trunk lr x1', '--img-scale',
-                  '160', '96', '--cfg-options',
-                  'test_dataloader.num_workers=0',
-                  'test_dataloader.persistent_workers=False'],
-        dry_needs=[],
-        tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
+    'realfog_pretrained_finetune': _dawn_fog_set(
+        'Cascade R-CNN, trunk lr x1'),
     # the converted split with the photos copied (a link would travel as
     # a link): tools/dataset_converters/coco_street.py SRC
     # data/device/coco_street --copy
