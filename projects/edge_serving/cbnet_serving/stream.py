@@ -16,6 +16,7 @@ seed 0), read by that class, so every name check and box check of the
 training data applies; a COCO file contributes the images it lists with
 the annotations of the project's classes (others dropped, counted).
 """
+import glob
 import json
 import os
 import os.path as osp
@@ -26,6 +27,29 @@ from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
 #: Category ids of the stream's file: the project's classes from 1.
 CATEGORIES = [dict(id=i, name=c) for i, c in enumerate(CITYSCAPES_CLASSES,
                                                        1)]
+
+
+#: The image files a folder of frames is read for (route.py, load_test.py).
+IMAGE_EXTS = ('.png', '.jpg', '.jpeg', '.bmp')
+
+
+def list_images(folder: str) -> List[str]:
+    """Paths of the images under ``folder``, searched recursively, sorted.
+
+    The one listing of a stream folder's frames: route.py answers them in
+    this order and load_test.py sends them in it, so that the frame order
+    of a routed run and a load test of the same folder agree.
+
+    Raises:
+        FileNotFoundError: No image (:data:`IMAGE_EXTS`) under ``folder``.
+    """
+    files = sorted(
+        f for f in glob.glob(osp.join(folder, '**', '*'), recursive=True)
+        if osp.splitext(f)[1].lower() in IMAGE_EXTS and osp.isfile(f))
+    if not files:
+        raise FileNotFoundError(
+            f'no images ({", ".join(IMAGE_EXTS)}) under {folder}')
+    return files
 
 
 def _check_condition(name: str) -> str:

@@ -18,7 +18,6 @@ level's requests are real frames of their own sizes rather than one image
 sent again.
 """
 import argparse
-import glob
 import json
 import os.path as osp
 import time
@@ -52,14 +51,9 @@ IMAGE_TYPES = {'.png': 'image/png', '.jpg': 'image/jpeg',
 
 def folder_bodies(folder):
     """``(body, content type, (h, w))`` of each image under ``folder``."""
-    files = sorted(f for f in glob.glob(osp.join(folder, '**', '*'),
-                                        recursive=True)
-                   if osp.splitext(f)[1].lower() in IMAGE_TYPES)
-    if not files:
-        raise FileNotFoundError(
-            f'no images ({", ".join(IMAGE_TYPES)}) under --images {folder}')
+    from cbnet_serving.stream import list_images
     out = []
-    for f in files:
+    for f in list_images(folder):
         img = cv2.imread(f)
         if img is None:
             raise ValueError(f'cannot decode {f}')

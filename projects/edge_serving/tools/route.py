@@ -17,13 +17,10 @@ processed (local / server / local-fallback). ``offload_eval.py`` scores
 such runs against ground truth.
 """
 import argparse
-import glob
 import json
 import os
 import os.path as osp
 from collections import Counter
-
-IMAGE_EXTS = ('.png', '.jpg', '.jpeg', '.bmp')
 
 
 def parse_args(argv=None):
@@ -45,13 +42,10 @@ def parse_args(argv=None):
 def iter_frames(path):
     """(name, BGR frame) of a folder's images (sorted) or a video."""
     import mmcv
+
+    from cbnet_serving.stream import list_images
     if osp.isdir(path):
-        files = sorted(
-            f for f in glob.glob(osp.join(path, '**', '*'), recursive=True)
-            if f.lower().endswith(IMAGE_EXTS))
-        if not files:
-            raise FileNotFoundError(f'no images ({IMAGE_EXTS}) under {path}')
-        for f in files:
+        for f in list_images(path):
             yield osp.relpath(f, path), mmcv.imread(f, channel_order='bgr')
     elif osp.isfile(path):
         video = mmcv.VideoReader(path)

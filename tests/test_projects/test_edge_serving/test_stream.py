@@ -22,7 +22,7 @@ from tool_helpers import load_tool
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
 from cbnet_serving.offload import (condition_order, frame_condition,
                                    offload_curve, stream_annotations)
-from cbnet_serving.stream import build_stream, voc_frames
+from cbnet_serving.stream import build_stream, list_images, voc_frames
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 
@@ -103,6 +103,25 @@ def test_build_stream_refuses_bad_input(stream, tmp_path):
         tool.parse_args([str(tmp_path / 's6'), '--coco', 'clear=x.json'])
     with pytest.raises(SystemExit):
         tool.parse_args([str(tmp_path / 's6')])
+
+
+def test_list_images_recursive_sorted_images_only(tmp_path):
+    """The one listing route.py and load_test.py read a folder with: every
+    image under it at any depth, in sorted path order, whatever the case of
+    its extension; other files and folders named like images left out."""
+    for rel in ('fog/b.jpg', 'fog/a.PNG', 'clear/z/c.jpeg', 'clear/d.bmp',
+                'notes.txt', 'fog/e.jpg.json'):
+        osp.dirname(rel) and os.makedirs(tmp_path / osp.dirname(rel),
+                                         exist_ok=True)
+        (tmp_path / rel).write_bytes(b'x')
+    os.makedirs(tmp_path / 'dir.png')
+    got = [osp.relpath(f, tmp_path) for f in list_images(str(tmp_path))]
+    assert got == ['clear/d.bmp', 'clear/z/c.jpeg', 'fog/a.PNG', 'fog/b.jpg']
+    empty = tmp_path / 'empty'
+    os.makedirs(empty / 'sub')
+    (empty / 'sub' / 'x.txt').write_bytes(b'x')
+    with pytest.raises(FileNotFoundError, match='no images'):
+        list_images(str(empty))
 
 
 def test_frame_conditions():
