@@ -257,6 +257,18 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
     ],
+    # issue 42's trunk probe: the stock cascade at the full trunk lr on
+    # MobileNetV2 (the realfog_pretrained_finetune row, reused) and on an
+    # ImageNet EfficientNet-Lite0 (a lab probe, cbnet_lab/efficientnet_
+    # lite.py): the Lite trunk joins the plugin only if it wins by more
+    # than a seed std
+    'realfog_pretrained_trunks': [
+        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
+         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('Cascade R-CNN, EfficientNet-Lite0, trunk lr x1', 'pretrained/'
+         'trunks/cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-trunk-lr1_'
+         'dawn-fog.py'),
+    ],
     # issue 44: does training with synthetic fog carry over to real fog?
     # Trained on the CLEAR COCO street photos (with their masks: CBNet-DD
     # distils mask logits), tested on COCO street val (clear) and on DAWN's
@@ -336,6 +348,7 @@ SET_COLUMNS = {
     'realfog_pretrained': BOX_SIZE_COLUMNS,
     'realfog_pretrained_parts': BOX_SIZE_COLUMNS,
     'realfog_pretrained_finetune': BOX_SIZE_COLUMNS,
+    'realfog_pretrained_trunks': BOX_SIZE_COLUMNS,
     # boxes: the only labels real fog (DAWN) has
     'fog_transfer': metric_columns('box AP', 'box AP50'),
     'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
@@ -444,6 +457,7 @@ PRESETS: Dict[str, Preset] = {
 SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
                'realfog_pretrained_parts': 'realfog_pretrained',
                'realfog_pretrained_finetune': 'realfog_pretrained',
+               'realfog_pretrained_trunks': 'realfog_pretrained',
                'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
                'fog_generated_to_real': 'fog_generated_to_real'}
 

