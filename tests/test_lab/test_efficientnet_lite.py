@@ -17,7 +17,7 @@ import torch
 import torch.nn.functional as F
 from mmengine.config import Config
 from torch import nn
-from tool_helpers import REPO, load_tool
+from tool_helpers import REPO, load_tool, with_random_bn
 
 from cbnet_lab import efficientnet_lite as el
 from cbnet_lab import recipe_comparison as rc
@@ -100,14 +100,7 @@ class SourceLite0(nn.Module):
 def source():
     """A seeded source trunk with non-trivial BN statistics."""
     torch.manual_seed(0)
-    model = SourceLite0()
-    for m in model.modules():
-        if isinstance(m, nn.BatchNorm2d):
-            m.running_mean.uniform_(-0.1, 0.1)
-            m.running_var.uniform_(0.5, 1.5)
-            m.weight.data.uniform_(0.5, 1.5)
-            m.bias.data.uniform_(-0.1, 0.1)
-    return model.eval()
+    return with_random_bn(SourceLite0())
 
 
 def test_key_map_covers_the_lite_trunk_exactly(source):

@@ -15,7 +15,7 @@ import torch
 from mmdet.models.backbones import MobileNetV2
 from mmengine.config import Config
 from torch import nn
-from tool_helpers import REPO, load_tool
+from tool_helpers import REPO, load_tool, with_random_bn
 
 from cbnet_tools import pretrained as pt
 
@@ -63,14 +63,7 @@ def source_trunk():
 def source():
     """A seeded source-layout trunk with non-trivial BN statistics."""
     torch.manual_seed(0)
-    model = source_trunk()
-    for m in model.modules():
-        if isinstance(m, nn.BatchNorm2d):
-            m.running_mean.uniform_(-0.1, 0.1)
-            m.running_var.uniform_(0.5, 1.5)
-            m.weight.data.uniform_(0.5, 1.5)
-            m.bias.data.uniform_(-0.1, 0.1)
-    return model.eval()
+    return with_random_bn(source_trunk())
 
 
 @pytest.fixture

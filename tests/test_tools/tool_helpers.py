@@ -1,6 +1,7 @@
 """Helpers of the tool smoke tests: load a script of ``tools/`` (or of a
 project's ``tools/``) as a module (the tools are not a package); a
-checkpoint of the demo model."""
+checkpoint of the demo model; a source trunk with non-trivial BN
+statistics (the weight converters' tests)."""
 import importlib.util
 import os.path as osp
 
@@ -46,3 +47,17 @@ def demo_checkpoint(path: str) -> str:
     model.init_weights()
     torch.save(dict(state_dict=model.state_dict(), meta=dict()), path)
     return path
+
+
+def with_random_bn(model):
+    """``model`` in eval mode with every BatchNorm's statistics and affine
+    parameters drawn away from their defaults (seed them first), so that a
+    converter that swaps two BNs gives other features."""
+    from torch import nn
+    for m in model.modules():
+        if isinstance(m, nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.1, 0.1)
+            m.running_var.uniform_(0.5, 1.5)
+            m.weight.data.uniform_(0.5, 1.5)
+            m.bias.data.uniform_(-0.1, 0.1)
+    return model.eval()
