@@ -224,24 +224,31 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     # why the revised CBNet's box path and the stock cascade differ on real
     # fog (the parts set's method on the pretrained trunk): the two recipes
     # differ there in three parts (neck, RPN, stage IoUs); each row is one
-    # of them with ONE part taken from the other (configs/pretrained/parts/)
+    # of them with ONE part taken from the other (configs/pretrained/parts/).
+    # Every row at the full trunk lr (the better fine-tuning measured by
+    # realfog_pretrained_finetune, whose two rows are the whole recipes here
+    # under the same names: run in that set's work dir, their runs count)
     'realfog_pretrained_parts': [
-        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
-         'ft_dawn-fog.py'),
-        ('Cascade R-CNN +NAS-FPN', 'pretrained/parts/cascade-rcnn_'
-         'mobilenet-v2_nasfpn_1xb2-ft_dawn-fog.py'),
-        ('Cascade R-CNN +CRPN reg 1', 'pretrained/parts/cascade-rcnn_'
-         'mobilenet-v2_fpn-crpn-reg1_1xb2-ft_dawn-fog.py'),
-        ('Cascade R-CNN +IoU .5/.7/.9', 'pretrained/parts/cascade-rcnn_'
-         'mobilenet-v2_fpn-iou579_1xb2-ft_dawn-fog.py'),
-        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
-         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
-        ('CBNet revised -NAS-FPN', 'pretrained/parts/cbnet-revised-box_'
-         'mobilenet-v2_fpn-crpn_1xb2-ft_dawn-fog.py'),
-        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised-box_mobilenet-'
-         'v2_nasfpn-rpn_1xb2-ft_dawn-fog.py'),
-        ('CBNet revised -IoU .5/.7/.9', 'pretrained/parts/cbnet-revised-'
-         'box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft_dawn-fog.py'),
+        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
+         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('Cascade R-CNN +NAS-FPN, trunk lr x1', 'pretrained/parts/cascade-'
+         'rcnn_mobilenet-v2_nasfpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('Cascade R-CNN +CRPN reg 1, trunk lr x1', 'pretrained/parts/'
+         'cascade-rcnn_mobilenet-v2_fpn-crpn-reg1_1xb2-ft-trunk-lr1_'
+         'dawn-fog.py'),
+        ('Cascade R-CNN +IoU .5/.7/.9, trunk lr x1', 'pretrained/parts/'
+         'cascade-rcnn_mobilenet-v2_fpn-iou579_1xb2-ft-trunk-lr1_'
+         'dawn-fog.py'),
+        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
+         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/parts/cbnet-'
+         'revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('CBNet revised, RPNHead, trunk lr x1', 'pretrained/finetune/cbnet-'
+         'revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-lr1_'
+         'dawn-fog.py'),
+        ('CBNet revised -IoU .5/.7/.9, trunk lr x1', 'pretrained/parts/'
+         'cbnet-revised-box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft-trunk-'
+         'lr1_dawn-fog.py'),
     ],
     # fine-tuning settings on real fog: the two question rows with the
     # trunk at the full lr instead of a tenth (configs/pretrained/finetune/;

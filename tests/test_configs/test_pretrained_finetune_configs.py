@@ -1,6 +1,6 @@
-"""configs/pretrained/finetune/: the two real-fog question recipes on the
-pretrained MobileNetV2 with the trunk at the full lr (lr_mult 1 instead of
-0.1). Each must differ from its recipe in that one number and nothing
+"""configs/pretrained/finetune/: the two real-fog question recipes (and
+the revised one with RPNHead, the parts set's RPN swap) on the pretrained
+MobileNetV2 with the trunk at the full lr (lr_mult 1 instead of 0.1). Each must differ from its recipe in that one number and nothing
 else, and the optimiser MMEngine builds from it must give the trunk's
 parameters the neck's lr."""
 import os.path as osp
@@ -22,7 +22,12 @@ PAIRS = [
     ('finetune/cbnet-revised-box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-'
      'lr1_dawn-fog.py',
      'cbnet-revised-box_mobilenet-v2_nasfpn-crpn_1xb2-ft_dawn-fog.py'),
+    ('finetune/cbnet-revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-'
+     'lr1_dawn-fog.py',
+     'cbnet-revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft_dawn-fog.py'),
 ]
+#: The realfog_pretrained_finetune set's two question rows.
+QUESTION = PAIRS[:2]
 
 
 def flat(d, prefix=''):
@@ -76,7 +81,7 @@ def test_the_set_reuses_the_question_rows():
     fog = dict(rc.RECIPE_SETS['realfog_pretrained'])
     paths = {osp.normpath(osp.join(ce.configs_root(), p)) for _, p in rows}
     assert paths == {osp.normpath(osp.join(PRETRAINED, p))
-                     for pair in PAIRS for p in pair}
+                     for pair in QUESTION for p in pair}
     # the two recipes under their realfog_pretrained names and files
     assert [n for n, _ in rows if n in fog] == ['Cascade R-CNN',
                                                'CBNet revised']

@@ -13,25 +13,26 @@ from cbnet_lab import recipe_comparison as rc
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 PRETRAINED = osp.join(ROOT, 'configs', 'pretrained')
 PARTS = osp.join(PRETRAINED, 'parts')
-STOCK = osp.join(PRETRAINED, 'cascade-rcnn_mobilenet-v2_fpn_1xb2-ft_'
-                 'dawn-fog.py')
-REVISED = osp.join(PRETRAINED, 'cbnet-revised-box_mobilenet-v2_nasfpn-'
-                   'crpn_1xb2-ft_dawn-fog.py')
+#: The two whole recipes at the full trunk lr (the parts set's setting)
+STOCK = osp.join(PRETRAINED, 'finetune', 'cascade-rcnn_mobilenet-v2_fpn_'
+                 '1xb2-ft-trunk-lr1_dawn-fog.py')
+REVISED = osp.join(PRETRAINED, 'finetune', 'cbnet-revised-box_mobilenet-'
+                   'v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py')
 #: (config file under configs/pretrained/, the recipe it starts from, the
 #: part it swaps)
 SWAPS = [
-    ('parts/cascade-rcnn_mobilenet-v2_nasfpn_1xb2-ft_dawn-fog.py', 'stock',
-     'neck'),
-    ('parts/cascade-rcnn_mobilenet-v2_fpn-crpn-reg1_1xb2-ft_dawn-fog.py',
-     'stock', 'rpn'),
-    ('parts/cascade-rcnn_mobilenet-v2_fpn-iou579_1xb2-ft_dawn-fog.py',
-     'stock', 'iou'),
-    ('parts/cbnet-revised-box_mobilenet-v2_fpn-crpn_1xb2-ft_dawn-fog.py',
-     'revised', 'neck'),
-    ('cbnet-revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft_dawn-fog.py',
-     'revised', 'rpn'),
-    ('parts/cbnet-revised-box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft_'
-     'dawn-fog.py', 'revised', 'iou'),
+    ('parts/cascade-rcnn_mobilenet-v2_nasfpn_1xb2-ft-trunk-lr1_dawn-fog.py',
+     'stock', 'neck'),
+    ('parts/cascade-rcnn_mobilenet-v2_fpn-crpn-reg1_1xb2-ft-trunk-lr1_'
+     'dawn-fog.py', 'stock', 'rpn'),
+    ('parts/cascade-rcnn_mobilenet-v2_fpn-iou579_1xb2-ft-trunk-lr1_'
+     'dawn-fog.py', 'stock', 'iou'),
+    ('parts/cbnet-revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_'
+     'dawn-fog.py', 'revised', 'neck'),
+    ('finetune/cbnet-revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-lr1_'
+     'dawn-fog.py', 'revised', 'rpn'),
+    ('parts/cbnet-revised-box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft-'
+     'trunk-lr1_dawn-fog.py', 'revised', 'iou'),
 ]
 
 
@@ -69,9 +70,9 @@ def test_the_set_lists_both_recipes_and_every_swap_once():
     expected = {STOCK, REVISED} | {
         osp.normpath(osp.join(PRETRAINED, c)) for c, _, _ in SWAPS}
     assert set(paths) == expected
-    # the two recipes keep their realfog_pretrained names, so a run of
-    # either set can be restored into the other
-    fog = dict(rc.RECIPE_SETS['realfog_pretrained'])
+    # the two recipes keep their realfog_pretrained_finetune names, so
+    # run in the same work dir the sets share those runs
+    fog = dict(rc.RECIPE_SETS['realfog_pretrained_finetune'])
     for name, path in rows:
         if name in fog:
             assert fog[name] == path

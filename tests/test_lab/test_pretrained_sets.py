@@ -173,15 +173,18 @@ def test_missing_weights_stop_before_any_training(tmp_path, monkeypatch):
 
 
 def test_realfog_pretrained_parts_set_end_to_end(fake_weights, tmp_path):
-    """The swapped-part rows (the two whole recipes are the previous
-    test's) train and score on a VOC folder, each from the fake trunk."""
+    """The swapped-part rows train and score on a VOC folder, each from
+    the fake trunk (the two whole recipes, at the full trunk lr, are the
+    realfog_pretrained_finetune rows: the previous test's recipes with
+    one lr_mult changed, tests/test_configs/test_pretrained_finetune_
+    configs.py)."""
     fog = str(tmp_path / 'fog')
     tiny_fog_folder(fog, num_images=6)
     tool = load_tool('analysis_tools/compare_recipes.py')
-    whole = dict(rc.RECIPE_SETS['realfog_pretrained'])
+    whole = dict(rc.RECIPE_SETS['realfog_pretrained_finetune'])
     swapped = [n for n, _ in rc.RECIPE_SETS['realfog_pretrained_parts']
                if n not in whole]
-    assert len(swapped) == 5
+    assert len(swapped) == 6
     runs = str(tmp_path / 'runs')
     record = tool.main(
         ['--set', 'realfog_pretrained_parts', '--data-root', fog,

@@ -41,15 +41,20 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             and the dark channel prior in front of the Cascade R-CNN;
             box AP, AP50, AP_s/m/l
   realfog_pretrained_parts  the stock Cascade R-CNN and the revised
-            CBNet's box path of realfog_pretrained, each with ONE of the
-            parts in which they differ (neck, RPN, stage IoUs) taken
-            from the other (configs/pretrained/parts/); the same
-            preset and columns
+            CBNet's box path at the full trunk lr (the two rows of
+            realfog_pretrained_finetune), each with ONE of the parts in
+            which they differ (neck, RPN, stage IoUs) taken from the
+            other (configs/pretrained/parts/); the same preset and
+            columns
   realfog_pretrained_finetune  the same two recipes with the trunk at
             the full lr (lr_mult 1) instead of a tenth
             (configs/pretrained/finetune/); the same preset and columns,
             the two recipes' runs reused from a realfog_pretrained
             work dir
+  realfog_pretrained_trunks  the stock Cascade R-CNN at the full trunk
+            lr on MobileNetV2 and on an ImageNet EfficientNet-Lite0 (a
+            lab probe, cbnet_lab/efficientnet_lite.py; weights: python -m
+            cbnet_lab.efficientnet_lite); the same preset and columns
   fog_transfer  does synthetic fog carry over to real fog? The stock
             cascade and the revised CBNet trained on the CLEAR COCO street
             photos: clear only, + CBNetAddFog augmentation, CBNet-DD on

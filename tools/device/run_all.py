@@ -130,7 +130,8 @@ SETS = {
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
     # the parts of the two real-fog recipes (configs/pretrained/parts/),
     # same data and budget: --sets realfog_pretrained_parts
-    'realfog_pretrained_parts': _dawn_fog_set('Cascade R-CNN +IoU .5/.7/.9'),
+    'realfog_pretrained_parts': _dawn_fog_set(
+        'Cascade R-CNN +IoU .5/.7/.9, trunk lr x1'),
     # the trunk at the full lr on the two question recipes
     # (configs/pretrained/finetune/): --sets realfog_pretrained_finetune
     'realfog_pretrained_finetune': _dawn_fog_set(

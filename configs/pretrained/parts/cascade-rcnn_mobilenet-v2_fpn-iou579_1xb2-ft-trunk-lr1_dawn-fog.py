@@ -1,8 +1,10 @@
 # realfog_pretrained_parts: MMDet's stock Cascade R-CNN on the pretrained
-# MobileNetV2 with the paper's stage IoU thresholds 0.5 / 0.7 / 0.9 in
-# place of MMDet's 0.5 / 0.6 / 0.7; nothing else changed.
+# MobileNetV2 (trunk at the full lr, as configs/pretrained/finetune/) with the
+# paper's stage IoU thresholds 0.5 / 0.7 / 0.9 in place of MMDet's 0.5 / 0.6 /
+# 0.7; nothing else changed.
 _base_ = [
-    '../cascade-rcnn_mobilenet-v2_fpn_1xb2-ft_dawn-fog.py',
+    '../finetune/cascade-rcnn_mobilenet-v2_fpn_1xb2-ft-trunk-lr1_'
+    'dawn-fog.py',
     '../../demo/parts/_base_/parts.py',
 ]
 model = dict(
