@@ -589,20 +589,31 @@ def weights_sources(
     return sources
 
 
-def read_result(path: str, budget: Budget) -> dict:
-    """A finished run's ``result.json``, checked against ``budget``.
+def _options(cfg_options: Optional[dict]) -> dict:
+    """``cfg_options`` as a run's record holds it (JSON types; {} for
+    none)."""
+    return json.loads(json.dumps(cfg_options or {}))
+
+
+def read_result(path: str, budget: Budget,
+                cfg_options: Optional[dict] = None) -> dict:
+    """A finished run's ``result.json``, checked against ``budget`` and
+    ``cfg_options``.
 
     Args:
         path (str): The run's ``result.json``.
         budget (Budget): The budget of the comparison that reads it.
+        cfg_options (dict, optional): The comparison's ``--cfg-options``;
+            a run records those it was trained with (none: no key).
 
     Returns:
         dict: The run's record.
 
     Raises:
         ValueError: The run was trained under another budget (another
-            ``--iters``, batch, image size...): its numbers would be mixed
-            into this comparison's tables silently.
+            ``--iters``, batch, image size...) or other config overrides:
+            its numbers would be mixed into this comparison's tables
+            silently.
     """
     with open(path) as f:
         result = json.load(f)
@@ -613,6 +624,12 @@ def read_result(path: str, budget: Budget) -> dict:
         raise ValueError(
             f'{path} was trained under another budget (was, now): {changed}; '
             'give this comparison its own --work-dir')
+    had, now = result.get('cfg_options', {}), _options(cfg_options)
+    if had != now:
+        raise ValueError(
+            f'{path} was trained with --cfg-options {had or "(none)"}, this '
+            f'comparison gives {now or "(none)"}; give the same options or '
+            'its own --work-dir')
     return result
 
 
@@ -690,7 +707,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     path = result_file(out_dir, name, seed)
     run_dir = osp.dirname(path)
     if osp.isfile(path):
-        return read_result(path, budget)
+        return read_result(path, budget, cfg_options)
     cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
     cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
@@ -737,6 +754,9 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     result = dict(
         recipe=name, config=config, seed=seed, budget=asdict(budget),
         train_time_s=train_time, metrics=table['metrics'], **extra)
+    if cfg_options:
+        # what else it was trained with (read_result refuses to mix it)
+        result['cfg_options'] = _options(cfg_options)
     os.makedirs(run_dir, exist_ok=True)
     with open(path, 'w') as f:
         json.dump(result, f, indent=1)
@@ -1175,7 +1195,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 f'{"already done" if done else doing}{eta}')
             start = time.perf_counter()
             if done:
-                results[k] = read_result(path, budget)
+                results[k] = read_result(path, budget, cfg_options)
                 continue
             try:
                 results[k] = run_recipe(
@@ -1222,6 +1242,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         record['in_progress'] = in_progress
     if transfer_root is not None:
         record['transfer_root'] = transfer_root
+    if cfg_options:
+        record['cfg_options'] = _options(cfg_options)
     top, ceiling_md = ceiling(set_name, ceiling_record, summary['columns'])
     if top is not None:
         record['ceiling'] = top

@@ -218,6 +218,10 @@ def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
          'test_dataloader.num_workers=0',
          'test_dataloader.persistent_workers=False'])
     assert [r['recipe'] for r in record['runs']] == [row]
+    # the overrides are part of each run's record and of the table's
+    opts = {'test_dataloader.num_workers': 0,
+            'test_dataloader.persistent_workers': False}
+    assert record['cfg_options'] == record['runs'][0]['cfg_options'] == opts
     assert record['summary']['columns'] == [
         'box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
     assert 0.0 <= record['runs'][0]['metrics']['real fog'][

@@ -194,6 +194,32 @@ def test_a_finished_run_of_another_budget_is_not_mixed_in(tmp_path):
     assert rc.read_result(str(path), ce.Budget())['recipe'] == 'b'
 
 
+def test_a_finished_run_of_other_cfg_options_is_not_mixed_in(tmp_path):
+    """A run records the --cfg-options it trained with; a comparison
+    giving others (or none) refuses it, as it refuses another budget."""
+    path = tmp_path / 'result.json'
+    budget = ce.Budget(iters=3)
+    opts = {'optim_wrapper.paramwise_cfg.custom_keys.backbone.lr_mult': 1.0}
+    path.write_text(json.dumps(dict(
+        recipe='a', seed=0, metrics={}, cfg_options=opts,
+        budget=json.loads(json.dumps(asdict(budget))))))
+    assert rc.read_result(str(path), budget, dict(opts))['recipe'] == 'a'
+    with pytest.raises(ValueError, match=r'lr_mult.*\(none\)'):
+        rc.read_result(str(path), budget)
+    other = {'optim_wrapper.paramwise_cfg.custom_keys.backbone.lr_mult': 0.1}
+    with pytest.raises(ValueError, match='cfg-options'):
+        rc.read_result(str(path), budget, other)
+    # a run without overrides (every record written before they were
+    # recorded) reads only where none are given
+    path.write_text(json.dumps(dict(
+        recipe='b', seed=0, metrics={},
+        budget=json.loads(json.dumps(asdict(budget))))))
+    assert rc.read_result(str(path), budget)['recipe'] == 'b'
+    assert rc.read_result(str(path), budget, {})['recipe'] == 'b'
+    with pytest.raises(ValueError, match='cfg-options'):
+        rc.read_result(str(path), budget, opts)
+
+
 def test_restore_runs_of_a_saved_record(tmp_path):
     budget = ce.Budget(iters=3)
     runs = [fake_run('x', 0, 0.2, 0.1), fake_run('x', 1, 0.3, 0.2)]

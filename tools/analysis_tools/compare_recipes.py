@@ -201,7 +201,10 @@ def parse_args(argv=None):
                         help='leave the runs other processes are training '
                         'out of this table instead of waiting for them')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
-                        help='overrides applied to every config')
+                        help='overrides applied to every config; each run '
+                        'records them, and a run trained with other '
+                        'overrides is refused (give the same ones, e.g. '
+                        'with --report-only, or another --work-dir)')
     args = parser.parse_args(argv)
     if args.set is None and not args.configs:
         parser.error('give --set or --configs')
