@@ -103,6 +103,10 @@ def lite0_blocks() -> List[Tuple[int, int, bool]]:
     return blocks
 
 
+#: :func:`lite0_blocks`, built once for every key of a conversion.
+LITE0_BLOCKS = lite0_blocks()
+
+
 #: EfficientNet-PyTorch's block parts -> MMDet's ``InvertedResidual``.
 BLOCK_PARTS = {'_expand_conv': 'expand_conv.conv', '_bn0': 'expand_conv.bn',
                '_depthwise_conv': 'depthwise_conv.conv',
@@ -121,10 +125,9 @@ def efficientnet_lite_key(key: str) -> str:
             ``_conv_stem`` / ``_blocks.{0..15}`` / ``_conv_head`` layout.
     """
     parts = key.split('.')
-    blocks = lite0_blocks()
     try:
         if parts[0] == '_blocks':
-            stage, index, expand = blocks[int(parts[1])]
+            stage, index, expand = LITE0_BLOCKS[int(parts[1])]
             if not expand and parts[2] in ('_expand_conv', '_bn0'):
                 raise KeyError
             inner, rest = BLOCK_PARTS[parts[2]], parts[3:]

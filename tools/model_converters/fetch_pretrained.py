@@ -54,6 +54,10 @@ def mobilenet_v2_modules() -> Dict[int, str]:
     return modules
 
 
+#: :func:`mobilenet_v2_modules`, built once for every key of a conversion.
+MOBILENET_V2_MODULES = mobilenet_v2_modules()
+
+
 #: Inside one inverted residual ``features.{i}.conv.{k}`` -> MMDet's
 #: ``InvertedResidual`` ConvModule part, with and without the 1x1 expand
 #: convolution (layer1's blocks have none).
@@ -73,12 +77,11 @@ def mobilenet_v2_key(key: str) -> str:
         ValueError: The key is not one of a MobileNetV2 1.0 trunk's.
     """
     parts = key.split('.')
-    modules = mobilenet_v2_modules()
     try:
         if parts[0] != 'features':
             raise KeyError
         index = int(parts[1])
-        module = modules[index]
+        module = MOBILENET_V2_MODULES[index]
         if module in ('conv1', 'conv2'):
             inner, rest = STEM[parts[2]], parts[3:]
         else:
