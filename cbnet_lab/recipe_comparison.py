@@ -264,11 +264,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
     ],
-    # issue 42's trunk probe: the stock cascade at the full trunk lr on
-    # MobileNetV2 (the realfog_pretrained_finetune row, reused) and on an
-    # ImageNet EfficientNet-Lite0 (a lab probe, cbnet_lab/efficientnet_
-    # lite.py): the Lite trunk joins the plugin only if it wins by more
-    # than a seed std
+    # which ImageNet trunk: the stock cascade at the full trunk lr on
+    # MobileNetV2 (the realfog_pretrained_finetune row, reused) and on
+    # EfficientNet-Lite0 (CBNetEfficientNetLite, in the plugin since it
+    # won here by more than a seed std, docs/accuracy.md)
     'realfog_pretrained_trunks': [
         ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
          'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),

@@ -9,6 +9,9 @@ plugin (``cbnet_mmdet``: registered components and their helpers only).
   to MMDetection's COCO JSON; ``tools/dataset_converters/cityscapes.py``.
 - :mod:`cbnet_tools.coco_statistics`: what a COCO instance file holds;
   ``tools/misc/dataset_stats.py``.
+- :mod:`cbnet_tools.pretrained`, :mod:`cbnet_tools.trunk_weights`: the
+  ImageNet trunks' cache folder, fetch steps and key maps;
+  ``tools/model_converters/fetch_pretrained.py``.
 - :mod:`cbnet_tools.markdown`: the markdown tables every report prints.
 - :mod:`cbnet_tools.cpu_distributed`: distributed launches on CPU-only
   machines, for ``tools/train.py`` and ``tools/test.py``.

