@@ -51,8 +51,9 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             (configs/pretrained/finetune/); the same preset and columns,
             the two recipes' runs reused from a realfog_pretrained
             work dir
-  realfog_pretrained_trunks  the stock Cascade R-CNN at the full trunk
-            lr on MobileNetV2 and on an ImageNet EfficientNet-Lite0
+  realfog_pretrained_trunks  the stock Cascade R-CNN and the revised
+            CBNet at the full trunk lr on MobileNetV2 and on an ImageNet
+            EfficientNet-Lite0
             (CBNetEfficientNetLite; weights: fetch_pretrained.py
             efficientnet_lite0); the same preset and columns
   fog_transfer  does synthetic fog carry over to real fog? The stock

