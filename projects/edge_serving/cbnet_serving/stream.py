@@ -29,8 +29,11 @@ CATEGORIES = [dict(id=i, name=c) for i, c in enumerate(CITYSCAPES_CLASSES,
                                                        1)]
 
 
-#: The image files a folder of frames is read for (route.py, load_test.py).
-IMAGE_EXTS = ('.png', '.jpg', '.jpeg', '.bmp')
+#: The image files a folder of frames is read for (route.py,
+#: load_test.py): extension -> the content type load_test.py sends them as.
+IMAGE_TYPES = {'.png': 'image/png', '.jpg': 'image/jpeg',
+               '.jpeg': 'image/jpeg', '.bmp': 'image/bmp'}
+IMAGE_EXTS = tuple(IMAGE_TYPES)
 
 
 def list_images(folder: str) -> List[str]:

@@ -45,13 +45,9 @@ def parse_args(argv=None):
     return p.parse_args(argv)
 
 
-IMAGE_TYPES = {'.png': 'image/png', '.jpg': 'image/jpeg',
-               '.jpeg': 'image/jpeg', '.bmp': 'image/bmp'}
-
-
 def folder_bodies(folder):
     """``(body, content type, (h, w))`` of each image under ``folder``."""
-    from cbnet_serving.stream import list_images
+    from cbnet_serving.stream import IMAGE_TYPES, list_images
     out = []
     for f in list_images(folder):
         img = cv2.imread(f)
