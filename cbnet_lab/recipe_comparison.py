@@ -264,6 +264,19 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
     ],
+    # the neck's normalisation on real fog: the revised CBNet at the full
+    # trunk lr with NAS-FPN (BatchNorm, batches of 2), with FPN (no norm;
+    # the parts set's row) and with NAS-FPN on GroupNorm; the first two
+    # are the parts set's rows under the same names (same work dir)
+    'realfog_pretrained_neck': [
+        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
+         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/parts/cbnet-'
+         'revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        ('CBNet revised, NAS-FPN GN, trunk lr x1', 'pretrained/neck/cbnet-'
+         'revised-box_mobilenet-v2_nasfpn-gn-crpn_1xb2-ft-trunk-lr1_'
+         'dawn-fog.py'),
+    ],
     # which ImageNet trunk: the stock cascade and the revised CBNet at the
     # full trunk lr on MobileNetV2 (the realfog_pretrained_finetune rows,
     # reused) and on EfficientNet-Lite0 (CBNetEfficientNetLite, in the
@@ -361,6 +374,7 @@ SET_COLUMNS = {
     'realfog_pretrained_parts': BOX_SIZE_COLUMNS,
     'realfog_pretrained_finetune': BOX_SIZE_COLUMNS,
     'realfog_pretrained_trunks': BOX_SIZE_COLUMNS,
+    'realfog_pretrained_neck': BOX_SIZE_COLUMNS,
     # boxes: the only labels real fog (DAWN) has
     'fog_transfer': metric_columns('box AP', 'box AP50'),
     'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
@@ -470,6 +484,7 @@ SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
                'realfog_pretrained_parts': 'realfog_pretrained',
                'realfog_pretrained_finetune': 'realfog_pretrained',
                'realfog_pretrained_trunks': 'realfog_pretrained',
+               'realfog_pretrained_neck': 'realfog_pretrained',
                'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
                'fog_generated_to_real': 'fog_generated_to_real'}
 

@@ -56,6 +56,11 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             EfficientNet-Lite0
             (CBNetEfficientNetLite; weights: fetch_pretrained.py
             efficientnet_lite0); the same preset and columns
+  realfog_pretrained_neck  the revised CBNet at the full trunk lr with
+            NAS-FPN on BatchNorm (batches of 2), with FPN, and with
+            NAS-FPN on GroupNorm (configs/pretrained/neck/); the same
+            preset and columns, the first two rows reused from the parts
+            set's work dir
   fog_transfer  does synthetic fog carry over to real fog? The stock
             cascade and the revised CBNet trained on the CLEAR COCO street
             photos: clear only, + CBNetAddFog augmentation, CBNet-DD on

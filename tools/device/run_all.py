@@ -143,6 +143,10 @@ SETS = {
     # --sets realfog_pretrained_trunks
     'realfog_pretrained_trunks': _dawn_fog_set(
         'Cascade R-CNN, EfficientNet-Lite0, trunk lr x1'),
+    # NAS-FPN on GroupNorm beside BatchNorm and FPN
+    # (configs/pretrained/neck/): --sets realfog_pretrained_neck
+    'realfog_pretrained_neck': _dawn_fog_set(
+        'CBNet revised, NAS-FPN GN, trunk lr x1'),
     # the converted split with the photos copied (a link would travel as
     # a link): tools/dataset_converters/coco_street.py SRC
     # data/device/coco_street --copy
