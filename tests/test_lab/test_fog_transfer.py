@@ -12,9 +12,9 @@ import shutil
 import pytest
 from mmengine.config import Config
 from mmengine.runner import Runner
-from test_pretrained_sets import FAST, TEST_IN_PROCESS, fake_coco
+from test_pretrained_sets import fake_coco
 from test_pretrained_sets import fake_weights  # noqa: F401 (a fixture)
-from tool_helpers import load_tool
+from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import ap_drop as ad
 from cbnet_lab import config_edits as ce

@@ -11,7 +11,7 @@ import platform
 import pytest
 import torch
 from mmdet.models.backbones import MobileNetV2
-from tool_helpers import load_tool
+from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import recipe_comparison as rc
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
@@ -24,11 +24,6 @@ TO_COCO = {'person': (1, 'person'), 'bicycle': (2, 'bicycle'),
            'car': (3, 'car'), 'motorcycle': (4, 'motorcycle'),
            'bus': (6, 'bus'), 'train': (7, 'train'), 'truck': (8, 'truck'),
            'rider': (41, 'skateboard')}
-#: Tiny sizes: the fake photos as they are, tested in process.
-FAST = ['--seeds', '0', '--iters', '2', '--batch-size', '2',
-        '--num-workers', '0', '--warmup-iters', '1']
-TEST_IN_PROCESS = ['test_dataloader.num_workers=0',
-                   'test_dataloader.persistent_workers=False']
 
 
 @pytest.fixture

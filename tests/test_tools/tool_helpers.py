@@ -1,13 +1,21 @@
 """Helpers of the tool smoke tests: load a script of ``tools/`` (or of a
 project's ``tools/``) as a module (the tools are not a package); a
 checkpoint of the demo model; a source trunk with non-trivial BN
-statistics (the weight converters' tests)."""
+statistics (the weight converters' tests); the arguments of a tiny
+``compare_recipes.py`` run."""
 import importlib.util
 import os.path as osp
 
 REPO = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DEMO = osp.join(REPO, 'configs', 'demo',
                 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
+#: compare_recipes.py at tiny sizes: one seed, 2 iterations of 2 images,
+#: data loaded in process.
+FAST = ['--seeds', '0', '--iters', '2', '--batch-size', '2',
+        '--num-workers', '0', '--warmup-iters', '1']
+#: ``--cfg-options`` that test in process too.
+TEST_IN_PROCESS = ['test_dataloader.num_workers=0',
+                   'test_dataloader.persistent_workers=False']
 
 
 def tool_file(relpath: str) -> str:

@@ -21,7 +21,8 @@ from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
 from torch import nn
-from tool_helpers import REPO, load_tool, with_random_bn
+from tool_helpers import (FAST, REPO, TEST_IN_PROCESS, load_tool,
+                          with_random_bn)
 
 from cbnet_lab import recipe_comparison as rc
 from cbnet_mmdet.models.backbones import CBNetEfficientNetLite
@@ -271,10 +272,7 @@ def test_trunks_set_end_to_end_on_a_fake_trunk(source, tmp_path,
     record = tool.main(
         ['--set', 'realfog_pretrained_trunks', '--data-root', fog,
          '--img-scale', '160', '96', '--work-dir', runs, '--only', *rows,
-         '--seeds', '0', '--iters', '2', '--batch-size', '2',
-         '--num-workers', '0', '--warmup-iters', '1', '--cfg-options',
-         'test_dataloader.num_workers=0',
-         'test_dataloader.persistent_workers=False'])
+         *FAST, '--cfg-options', *TEST_IN_PROCESS])
     assert [r['recipe'] for r in record['runs']] == rows
     # the overrides are part of each run's record and of the table's
     opts = {'test_dataloader.num_workers': 0,
