@@ -1,7 +1,8 @@
 """configs/pretrained/finetune/: the two real-fog question recipes (and
 the revised one with RPNHead, the parts set's RPN swap) on the pretrained
-MobileNetV2 with the trunk at the full lr (lr_mult 1 instead of 0.1). Each must differ from its recipe in that one number and nothing
-else, and the optimiser MMEngine builds from it must give the trunk's
+MobileNetV2 with the trunk at the full lr (lr_mult 1 instead of 0.1).
+Each must differ from its recipe in that one number and nothing else,
+and the optimiser MMEngine builds from it must give the trunk's
 parameters the neck's lr."""
 import os.path as osp
 
@@ -84,7 +85,7 @@ def test_the_set_reuses_the_question_rows():
                      for pair in QUESTION for p in pair}
     # the two recipes under their realfog_pretrained names and files
     assert [n for n, _ in rows if n in fog] == ['Cascade R-CNN',
-                                               'CBNet revised']
+                                                'CBNet revised']
     for name, path in rows:
         if name in fog:
             assert fog[name] == path

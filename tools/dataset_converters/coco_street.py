@@ -138,9 +138,8 @@ def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
             categories=street_categories())
     out['stats'] = dict(
         images={s: len(out[s]['images']) for s in SPLITS},
-        street_images={s: len(set(street) & {i['file_name']
-                                            for i in out[s]['images']})
-                       for s in SPLITS},
+        street_images={s: len(set(street) & {
+            i['file_name'] for i in out[s]['images']}) for s in SPLITS},
         instances={s: dict(Counter(
             CITYSCAPES_CLASSES[a['category_id'] - 1]
             for a in out[s]['annotations'])) for s in SPLITS},

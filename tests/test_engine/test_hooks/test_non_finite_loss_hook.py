@@ -32,7 +32,8 @@ def batch(*paths):
 def test_registered_name_builds_this_class():
     assert HOOKS.get('CBNetNonFiniteLossHook') is CBNetNonFiniteLossHook
     # scoped: found whatever default scope an earlier test left current
-    assert type(HOOKS.build(dict(type='mmdet.CBNetNonFiniteLossHook'))) is CBNetNonFiniteLossHook
+    hook = HOOKS.build(dict(type='mmdet.CBNetNonFiniteLossHook'))
+    assert type(hook) is CBNetNonFiniteLossHook
 
 
 @pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])

@@ -25,7 +25,8 @@ def mock_runner(it=16, epoch=1):
 def test_registered_name_builds_this_class():
     assert HOOKS.get('CBNetRNGStateHook') is CBNetRNGStateHook
     # scoped: found whatever default scope an earlier test left current
-    assert type(HOOKS.build(dict(type='mmdet.CBNetRNGStateHook'))) is CBNetRNGStateHook
+    hook = HOOKS.build(dict(type='mmdet.CBNetRNGStateHook'))
+    assert type(hook) is CBNetRNGStateHook
 
 
 def test_rng_state_round_trip_and_weights_only_load():
