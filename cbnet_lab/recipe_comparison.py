@@ -195,6 +195,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'crpn_1xb2-ft_coco-street.py'),
         ('CBNet revised, RPNHead', 'pretrained/cbnet-revised_mobilenet-v2_'
          'nasfpn-rpn_1xb2-ft_coco-street.py'),
+        # CBNet for pretrained trunks: the revised CBNet with FPN in place
+        # of the NAS-FPN that cost it on real fog (realfog_pretrained_parts)
+        ('CBNet-PT', 'pretrained/cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft_'
+         'coco-street.py'),
     ],
     # issue 42, real fog on the pretrained trunk (DAWN fog + haze at 640
     # px): the same recipes box-only, YOLOX-Tiny (from scratch: no weights
@@ -220,6 +224,11 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          '1xb2-ft_dawn-fog-320.py'),
         ('Edge FCOS-lite, 640 px', 'pretrained/fcos-lite_mobilenet-v2_fpn_'
          '1xb2-ft_dawn-fog.py'),
+        # CBNet for pretrained trunks (FPN in place of the NAS-FPN that cost
+        # the revised CBNet here, realfog_pretrained_parts), at this set's
+        # trunk lr; the fog_transfer set's in-domain ceiling for its model
+        ('CBNet-PT', 'pretrained/cbnet-pt-box_mobilenet-v2_fpn-crpn_1xb2-ft_'
+         'dawn-fog.py'),
     ],
     # why the revised CBNet's box path and the stock cascade differ on real
     # fog (the parts set's method on the pretrained trunk): the two recipes
@@ -241,8 +250,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          'dawn-fog.py'),
         ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/parts/cbnet-'
-         'revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        # FPN in place of the NAS-FPN: shipped since as the recipe for
+        # pretrained trunks (the row keeps its name: runs are keyed on it)
+        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/cbnet-pt-box_'
+         'mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
         ('CBNet revised, RPNHead, trunk lr x1', 'pretrained/finetune/cbnet-'
          'revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-lr1_'
          'dawn-fog.py'),
@@ -271,8 +282,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     'realfog_pretrained_neck': [
         ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
          'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/parts/cbnet-'
-         'revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
+        # FPN in place of the NAS-FPN: shipped since as the recipe for
+        # pretrained trunks (the row keeps its name: runs are keyed on it)
+        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/cbnet-pt-box_'
+         'mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
         ('CBNet revised, NAS-FPN GN, trunk lr x1', 'pretrained/neck/cbnet-'
          'revised-box_mobilenet-v2_nasfpn-gn-crpn_1xb2-ft-trunk-lr1_'
          'dawn-fog.py'),
@@ -300,7 +313,8 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     # fog + haze val (real fog, boxes): the floor, synthetic fog
     # augmentation, CBNet-DD on synthetic foggy twins, and the dark channel
     # prior in front of the floor's own checkpoint at test time (trains
-    # nothing), on the stock cascade and on the revised CBNet; the
+    # nothing), on the stock cascade and on CBNet-PT (the best CBNet on
+    # real photographs: the revised CBNet with FPN for NAS-FPN); the
     # in-domain ceiling is the realfog_pretrained record (SET_CEILINGS)
     'fog_transfer': [
         ('Cascade Mask R-CNN, clear', 'pretrained/fog_transfer/'
@@ -316,18 +330,18 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
          'cascade-mask-rcnn_mobilenet-v2_fpn_dcp-test_coco-street-to-'
          'dawn-fog.py'),
-        ('CBNet revised, clear', 'pretrained/fog_transfer/'
-         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb2-ft_coco-street-to-'
+        ('CBNet-PT, clear', 'pretrained/fog_transfer/'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft_coco-street-to-'
          'dawn-fog.py'),
-        ('CBNet revised, clear + fog aug', 'pretrained/fog_transfer/'
-         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb2-ft-fog-aug_coco-'
+        ('CBNet-PT, clear + fog aug', 'pretrained/fog_transfer/'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft-fog-aug_coco-'
          'street-to-dawn-fog.py'),
-        ('CBNet revised, CBNet-DD', 'pretrained/fog_transfer/'
-         'cbnet-revised-dd_mobilenet-v2_nasfpn-crpn_1xb2-ft_coco-street-'
+        ('CBNet-PT, CBNet-DD', 'pretrained/fog_transfer/'
+         'cbnet-pt-dd_mobilenet-v2_fpn-crpn_1xb2-ft_coco-street-'
          'to-dawn-fog.py'),
-        ('DCP + CBNet revised, clear (test only)',
+        ('DCP + CBNet-PT, clear (test only)',
          '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
-         'cbnet-revised_mobilenet-v2_nasfpn-crpn_dcp-test_coco-street-to-'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_dcp-test_coco-street-to-'
          'dawn-fog.py'),
     ],
     # issue 44 item 3, generated -> real: the same models trained on the
@@ -341,11 +355,11 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('Cascade Mask R-CNN, generated fog', 'pretrained/fog_transfer/'
          'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_foggy-cityscapes-like-'
          'to-dawn-fog.py'),
-        ('CBNet revised, generated clear', 'pretrained/fog_transfer/'
-         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_cityscapes-like-to-'
+        ('CBNet-PT, generated clear', 'pretrained/fog_transfer/'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_cityscapes-like-to-'
          'dawn-fog.py'),
-        ('CBNet revised, generated fog', 'pretrained/fog_transfer/'
-         'cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb4-ft_foggy-cityscapes-'
+        ('CBNet-PT, generated fog', 'pretrained/fog_transfer/'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_foggy-cityscapes-'
          'like-to-dawn-fog.py'),
     ],
     # proposal recall of the three RPN heads
@@ -392,7 +406,7 @@ SET_CEILINGS = {
         what="the same trunk and heads, box-only, trained on DAWN's own "
         'train split',
         rows={'Cascade Mask R-CNN': 'Cascade R-CNN',
-              'CBNet revised': 'CBNet revised'}),
+              'CBNet-PT': 'CBNet-PT'}),
 }
 
 

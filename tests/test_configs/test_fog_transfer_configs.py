@@ -27,7 +27,7 @@ GENERATED = rc.resolve_recipes('fog_generated_to_real')
 STREET = dict(rc.resolve_recipes('coco_street'))
 #: trunk and heads: the coco_street row each family starts from
 FAMILIES = {'Cascade Mask R-CNN': STREET['Cascade Mask R-CNN'],
-            'CBNet revised': STREET['CBNet revised']}
+            'CBNet-PT': STREET['CBNet-PT']}
 
 
 def load(path):

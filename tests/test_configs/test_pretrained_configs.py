@@ -31,10 +31,19 @@ def empty_cache(tmp_path, monkeypatch):
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'empty'))
 
 
+#: The CBNet recipe for pretrained trunks: the revised CBNet less the
+#: NAS-FPN, measured as a row of the real-fog parts set
+PT_RECIPE = osp.join(PRETRAINED, 'cbnet-pt-box_mobilenet-v2_fpn-crpn_1xb2-'
+                     'ft-trunk-lr1_dawn-fog.py')
+
+
 def test_every_config_is_in_a_set():
+    parts = dict(rc.resolve_recipes('realfog_pretrained_parts'))
+    assert osp.normpath(parts['CBNet revised -NAS-FPN, trunk lr x1']) == \
+        PT_RECIPE
     assert sorted(map(osp.normpath, list(STREET.values()) +
-                      list(FOG.values()))) == SHIPPED
-    assert len(STREET) == 4 and len(FOG) == 8
+                      list(FOG.values()) + [PT_RECIPE])) == SHIPPED
+    assert len(STREET) == 5 and len(FOG) == 9
 
 
 @pytest.mark.parametrize('path', SHIPPED, ids=osp.basename)
@@ -93,6 +102,7 @@ def test_the_heads_of_each_recipe():
     street = {n: Config.fromfile(p).model for n, p in STREET.items()}
     stock, paper = street['Cascade Mask R-CNN'], street['CBNet']
     revised, rpn = street['CBNet revised'], street['CBNet revised, RPNHead']
+    cbnet_pt = street['CBNet-PT']
     assert stock.neck.type == 'FPN' and stock.rpn_head.type == 'RPNHead'
     assert stock.roi_head.type == 'CascadeRoIHead'
     assert stock.roi_head.mask_head.type == 'FCNMaskHead'
@@ -116,11 +126,17 @@ def test_the_heads_of_each_recipe():
     assert revised.rpn_head.loss_iou.loss_weight == 1.0
     assert revised.rpn_head.loss_giou.loss_weight == 1.0
     assert rpn.rpn_head.type == 'RPNHead'
+    # CBNet-PT: the revised CBNet with the stock cascade's neck
+    assert cbnet_pt.neck == stock.neck
+    assert cbnet_pt.data_preprocessor == stock.data_preprocessor
+    for key in ('rpn_head', 'roi_head', 'train_cfg', 'test_cfg', 'backbone'):
+        assert cbnet_pt[key] == revised[key], key
     # the fog versions are the same heads without masks
     fog = {n: Config.fromfile(p) for n, p in FOG.items()}
     pairs = [('Cascade R-CNN', 'Cascade Mask R-CNN'),
              ('CBNet', 'CBNet'), ('CBNet revised', 'CBNet revised'),
-             ('CBNet revised, RPNHead', 'CBNet revised, RPNHead')]
+             ('CBNet revised, RPNHead', 'CBNet revised, RPNHead'),
+             ('CBNet-PT', 'CBNet-PT')]
     for fog_name, street_name in pairs:
         model = fog[fog_name].model
         assert model.roi_head.get('mask_head') is None

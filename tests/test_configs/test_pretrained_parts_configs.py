@@ -27,8 +27,9 @@ SWAPS = [
      'dawn-fog.py', 'stock', 'rpn'),
     ('parts/cascade-rcnn_mobilenet-v2_fpn-iou579_1xb2-ft-trunk-lr1_'
      'dawn-fog.py', 'stock', 'iou'),
-    ('parts/cbnet-revised-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_'
-     'dawn-fog.py', 'revised', 'neck'),
+    # shipped as the CBNet recipe for pretrained trunks
+    ('cbnet-pt-box_mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py',
+     'revised', 'neck'),
     ('finetune/cbnet-revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-lr1_'
      'dawn-fog.py', 'revised', 'rpn'),
     ('parts/cbnet-revised-box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft-'

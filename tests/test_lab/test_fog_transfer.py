@@ -25,7 +25,7 @@ ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
 #: test-only row -> the row whose checkpoint it tests
 TEST_ONLY = {'DCP + Cascade Mask R-CNN, clear (test only)':
              'Cascade Mask R-CNN, clear',
-             'DCP + CBNet revised, clear (test only)': 'CBNet revised, clear'}
+             'DCP + CBNet-PT, clear (test only)': 'CBNet-PT, clear'}
 SCALE = ['--img-scale', '160', '96']
 
 
@@ -40,11 +40,11 @@ def tiny_data(cityscapes_like_root, tmp_path):
 
 
 def ceiling_record(path, box_ap=(12.5, 8.0)):
-    """A saved realfog_pretrained record with its first two rows."""
+    """A saved realfog_pretrained record with the two ceiling rows."""
     stat = lambda v: dict(mean=v, std=0.0, n=1)  # noqa: E731
     summary = {name: {'real fog': {'box AP': stat(ap),
                                    'box AP50': stat(2 * ap)}}
-               for name, ap in zip(('Cascade R-CNN', 'CBNet revised'),
+               for name, ap in zip(('Cascade R-CNN', 'CBNet-PT'),
                                    box_ap)}
     with open(path, 'w') as f:
         json.dump(dict(set='realfog_pretrained', seeds=[0],
@@ -127,7 +127,7 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
     md = (tmp_path / 'runs' / 'compare.md').read_text()
     assert '**real fog**' in md and '| box AP drop |' in md
     assert '**in-domain ceiling**' in md
-    assert '| CBNet revised (beside CBNet revised) | 8.0 | 16.0 |' in md
+    assert '| CBNet-PT (beside CBNet-PT) | 8.0 | 16.0 |' in md
     assert osp.isfile(tmp_path / 'runs' / 'compare.png')
 
     # a record restored elsewhere has the clear row's result but not its

@@ -1,6 +1,6 @@
 """The pretrained-trunk sets of issue 42 end to end on tiny fake data:
 ``coco_street`` (real masks: COCO json -> tools/dataset_converters/
-coco_street.py -> the four recipes, mask AP / box AP / mIoU) and
+coco_street.py -> its recipes, mask AP / box AP / mIoU) and
 ``realfog_pretrained`` (a VOC folder, box AP / AP50 / AP_s/m/l), each
 with a fake MobileNetV2 weights file built here (no wheel, no network)."""
 import json

@@ -35,7 +35,8 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             ImageNet MobileNetV2 (tools/model_converters/
             fetch_pretrained.py mobilenet_v2): MMDet's Cascade Mask
             R-CNN, the paper's CBNet, the revised CBNet, the revised one
-            with RPNHead; mask AP, box AP, mIoU
+            with RPNHead, CBNet-PT (the revised one with FPN for NAS-FPN,
+            the CBNet for pretrained trunks); mask AP, box AP, mIoU
   realfog_pretrained  the same recipes box-only on DAWN's fog and haze
             at 640 px on the same trunk, plus YOLOX-Tiny (from scratch)
             and the dark channel prior in front of the Cascade R-CNN;
@@ -62,7 +63,7 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             preset and columns, the first two rows reused from the parts
             set's work dir
   fog_transfer  does synthetic fog carry over to real fog? The stock
-            cascade and the revised CBNet trained on the CLEAR COCO street
+            cascade and CBNet-PT trained on the CLEAR COCO street
             photos: clear only, + CBNetAddFog augmentation, CBNet-DD on
             synthetic foggy twins, and the dark channel prior in front of
             the clear-only checkpoint at test time (trains nothing); each

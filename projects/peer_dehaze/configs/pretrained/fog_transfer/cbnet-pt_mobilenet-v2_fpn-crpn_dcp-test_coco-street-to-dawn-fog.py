@@ -1,12 +1,12 @@
 # Dehaze-then-detect at TEST time only (fog_transfer set, issue 44): the dark
-# channel prior (He et al., the peer's training-free dehazer) in front of the
-# revised CBNet trained on clear photos. Nothing is trained: compare_weights_of
+# channel prior (He et al., the peer's training-free dehazer) in front of
+# CBNet-PT trained on clear photos. Nothing is trained: compare_weights_of
 # names the floor's config, so the harness tests the floor's checkpoint of each
 # seed (an error naming it when that run is missing), on COCO street val
 # (dehazing clear photos: its cost) and on DAWN's real fog val.
 _base_ = [
     '../../../../../configs/pretrained/fog_transfer/'
-    'cbnet-revised_mobilenet-v2_nasfpn-crpn_'
+    'cbnet-pt_mobilenet-v2_fpn-crpn_'
     '1xb2-ft_coco-street-to-dawn-fog.py',
     '../../_base_/attention_dehazer.py', '../../realfog/_base_/dehazers.py'
 ]
@@ -15,7 +15,7 @@ custom_imports = dict(
     imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)
 
 compare_weights_of = ('../../../../../configs/pretrained/fog_transfer/'
-                      'cbnet-revised_mobilenet-v2_nasfpn-crpn_'
+                      'cbnet-pt_mobilenet-v2_fpn-crpn_'
                       '1xb2-ft_coco-street-to-dawn-fog.py')
 model = dict(
     data_preprocessor=dict(

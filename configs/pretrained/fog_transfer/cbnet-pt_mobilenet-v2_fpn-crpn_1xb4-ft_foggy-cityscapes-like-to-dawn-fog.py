@@ -2,7 +2,7 @@
 # scenes' depth-rendered fog (beta 0.02, Foggy Cityscapes' benchmark density,
 # as the ablation set trains), tested as the clear row: how far rendered fog is
 # from real fog.
-_base_ = ('./cbnet-revised_mobilenet-v2_nasfpn-crpn_'
+_base_ = ('./cbnet-pt_mobilenet-v2_fpn-crpn_'
           '1xb4-ft_cityscapes-like-to-dawn-fog.py')
 
 train_dataloader = dict(

@@ -1,11 +1,11 @@
-# CBNet-DD on the revised CBNet (fog_transfer set, issue 44): the floor's model
+# CBNet-DD on CBNet-PT (fog_transfer set, issue 44): the floor's model
 # as the student, fed each clear photo's synthetic foggy twin
 # (CBNetAddFoggyTwin, beta uniform in 0.005-0.02 1/m, every image fogged), and
 # an EMA teacher fed the clear photo with the same resize and flip; their last-
 # stage mask logits on the student's RoIs are distilled (paper II.E, (11)).
 # Tested as the student on 3-channel photos, clear and real fog, like the other
 # rows.
-_base_ = ('./cbnet-revised_mobilenet-v2_nasfpn-crpn_'
+_base_ = ('./cbnet-pt_mobilenet-v2_fpn-crpn_'
           '1xb2-ft_coco-street-to-dawn-fog.py')
 
 # the clear row's model as the student, with its normalisation and

@@ -1,9 +1,9 @@
-# The revised CBNet, clear photos + synthetic fog augmentation (fog_transfer
+# CBNet-PT, clear photos + synthetic fog augmentation (fog_transfer
 # set, issue 44): CBNetAddFog right after the loaders (the row prior sees the
 # whole photo), beta uniform in 0.005-0.02 1/m on half of the images
 # (../_base_/datasets/fog-transfer.py); else the floor's recipe, data, budget
 # and tests.
-_base_ = ('./cbnet-revised_mobilenet-v2_nasfpn-crpn_'
+_base_ = ('./cbnet-pt_mobilenet-v2_fpn-crpn_'
           '1xb2-ft_coco-street-to-dawn-fog.py')
 
 train_dataloader = dict(

@@ -1,8 +1,0 @@
-# The revised CBNet on the pretrained MobileNetV2, trained on CLEAR photos only
-# (the floor of the fog_transfer set, issue 44): the coco_street set's recipe
-# as it is, tested on COCO street val (clear) and on DAWN's real fog val
-# (boxes), see ../_base_/datasets/fog-transfer.py.
-_base_ = [
-    '../cbnet-revised_mobilenet-v2_nasfpn-crpn_1xb2-ft_coco-street.py',
-    '../_base_/datasets/fog-transfer.py',
-]
