@@ -41,20 +41,14 @@ sys.path.append(osp.join(osp.dirname(osp.abspath(__file__)), 'test_tools'))
 sys.path.append(osp.join(osp.dirname(osp.abspath(__file__)),
                          'test_reliability'))
 
-#: Parameters of the tiny dataset (tests may rely on them).
-TINY = dict(num_train=4, num_val=3, img_size=(128, 256), seed=0,
-            empty_every=3, crowd_every=2)
-
 
 @pytest.fixture(scope='session')
 def cityscapes_like_root():
-    """Root of the tiny generated dataset, annotations converted."""
-    from cbnet_tools.cityscapes_to_coco import convert
-    from cbnet_tools.synthetic import generate_cityscapes_like
+    """Root of the tiny generated dataset (4 train / 3 val images at
+    128x256, seed 0: tests rely on these), annotations converted."""
+    from cbnet_tools.synthetic import tiny_converted
     with tempfile.TemporaryDirectory(prefix='cbnet_cityscapes_like_') as tmp:
-        root = osp.join(tmp, 'cityscapes')
-        generate_cityscapes_like(root, **TINY)
-        convert(root)
+        root = tiny_converted(osp.join(tmp, 'cityscapes'))
         assert osp.isfile(
             osp.join(root, 'annotations',
                      'instancesonly_filtered_gtFine_val.json'))

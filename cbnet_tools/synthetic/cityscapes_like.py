@@ -345,3 +345,19 @@ def load_record(out_root: str) -> Optional[dict]:
         return None
     with open(path) as f:
         return json.load(f)
+
+
+def tiny_converted(out_root: str) -> str:
+    """A tiny generated dataset with its COCO annotations: 4 train and 3
+    val images at 128x256 (the test suite's size), for dry runs of the
+    sets that train on generated scenes (``tools/device/run_all.py``).
+
+    Returns:
+        str: ``out_root``.
+    """
+    from cbnet_tools.cityscapes_to_coco import convert
+    generate_cityscapes_like(out_root, num_train=4, num_val=3,
+                             img_size=(128, 256), seed=0, empty_every=3,
+                             crowd_every=2)
+    convert(out_root)
+    return out_root

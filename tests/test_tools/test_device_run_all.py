@@ -301,3 +301,144 @@ def test_every_default_set_is_known_and_its_budget_is_the_harness_s():
         for key in ('args', 'dry_args'):
             args = tool.parse_args(['--set', name] + ra.SETS[name][key])
             assert args.set == name and args.iters > 0
+
+
+def test_a_transfer_set_without_its_real_fog_fails_clearly(tmp_path):
+    """fog_transfer trains on COCO street and is also tested on DAWN: the
+    second folder missing is named, and nothing trains."""
+    (tmp_path / 'data' / 'coco_street').mkdir(parents=True)
+    r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
+               'fog_transfer')
+    rec = ra.step_harness(r, dict(os.environ))
+    (fog,) = rec['sets']
+    assert fog['status'] == 'failed' and fog['data'] == 'carried'
+    assert 'transfer of set' in fog['note'] and 'dawn_fog_val' in \
+        fog['note']
+    assert not (tmp_path / 'work' / 'harness').exists()
+
+
+def test_a_set_made_on_the_machine_is_made_then_tested_on_the_transfer(
+        tmp_path, monkeypatch):
+    """fog_generated_to_real: its generated scenes are made on the machine
+    by the set's ``make`` command (here a stand-in writing a folder), the
+    carried real fog is passed as --transfer-root."""
+    (tmp_path / 'data' / 'dawn_fog_val').mkdir(parents=True)
+    spec = dict(ra.SETS['fog_generated_to_real'], make=[
+        '-c', 'import os, sys; os.makedirs(sys.argv[1]); '
+        'open(os.path.join(sys.argv[1], "made"), "w").write(sys.argv[2])',
+        '{path}', '{nproc}'])
+    monkeypatch.setitem(ra.SETS, 'fog_generated_to_real', spec)
+    seen = []
+
+    def fake_parallel(r, cmd, n, box, log_name, env):
+        seen.append(cmd)  # the set's record, as a finished set leaves it
+        work = cmd[cmd.index('--work-dir') + 1]
+        os.makedirs(work)
+        with open(osp.join(work, 'compare.json'), 'w') as f:
+            json.dump(dict(runs=[{}], missing=[]), f)
+        return dict(rc=0)
+
+    monkeypatch.setattr(ra, 'run_parallel', fake_parallel)
+    monkeypatch.setattr(ra.Runner, 'run', lambda self, cmd, *a, **k: dict(
+        rc=subprocess.run(cmd).returncode))
+    r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
+               'fog_generated_to_real')
+    rec = ra.step_harness(r, dict(os.environ))
+    (g2r,) = rec['sets']
+    made = tmp_path / 'work' / 'data' / 'cityscapes_like_bench'
+    assert (made / 'made').read_text() == str(os.cpu_count())
+    assert g2r['data'] == 'made on the machine'
+    assert g2r['transfer'] == 'carried' and g2r['status'] == 'ok'
+    (cmd,) = seen
+    assert cmd[cmd.index('--data-root') + 1] == str(made)
+    assert cmd[cmd.index('--transfer-root') + 1] == str(
+        tmp_path / 'data' / 'dawn_fog_val')
+
+
+def test_a_set_whose_data_cannot_be_made_fails_clearly(tmp_path,
+                                                       monkeypatch):
+    (tmp_path / 'data' / 'dawn_fog_val').mkdir(parents=True)
+    spec = dict(ra.SETS['fog_generated_to_real'],
+                make=['-c', 'raise SystemExit(3)'])
+    monkeypatch.setitem(ra.SETS, 'fog_generated_to_real', spec)
+    r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
+               'fog_generated_to_real')
+    rec = ra.step_harness(r, dict(os.environ))
+    (g2r,) = rec['sets']
+    assert g2r['status'] == 'failed'
+    assert 'could not be made' in g2r['note']
+
+
+def test_prepare_carries_each_sets_folders_once(tmp_path, capsys):
+    """--prepare copies the training data and the transfer folder of each
+    set (the real fog once for two sets, its val photos only), never the
+    data the machine makes; the val photos it keeps are the ones the
+    dataset's seeded split reads as val from the full folder."""
+    from mmdet.utils import register_all_modules
+
+    from cbnet_mmdet.datasets import CBNetVOCFogDataset
+    from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+    src = tmp_path / 'src'
+    (src / 'coco_street').mkdir(parents=True)
+    (src / 'coco_street' / 'x.txt').write_text('coco')
+    (src / 'cityscapes_like_bench').mkdir()
+    ids = tiny_fog_folder(str(src / 'dawn_fog'), num_images=10)
+    wheels = tmp_path / 'wheels'
+    wheels.mkdir()
+    (wheels / 'placeholder.whl').write_bytes(b'')  # nothing downloaded
+    data = tmp_path / 'data'
+    ra.main(['--prepare', '--wheels', str(wheels), '--data', str(data),
+             '--data-src', str(src), '--sets', 'fog_transfer',
+             'fog_generated_to_real'])
+    out = capsys.readouterr().out
+    call = json.loads(out[out.index('{'):])
+    carried = [osp.normpath(osp.join(ROOT, p)) for p in call['carry']]
+    assert carried == [str(wheels), str(data / 'coco_street'),
+                       str(data / 'dawn_fog_val')]
+    assert (data / 'coco_street' / 'x.txt').read_text() == 'coco'
+    assert not (data / 'cityscapes_like_bench').exists()
+    assert '--sets fog_transfer fog_generated_to_real' in call['command']
+    # every XML, the val photos only: 3 of the 10 (val_fraction 0.3)
+    val = data / 'dawn_fog_val'
+    assert len(list((val / 'Annotations').iterdir())) == len(ids)
+    kept = sorted(p.stem for p in (val / 'JPEGImages').iterdir())
+    assert len(kept) == 3
+    register_all_modules()
+
+    def val_photos(root):
+        ds = CBNetVOCFogDataset(data_root=str(root), ann_file='',
+                                split='val', pipeline=[], test_mode=True)
+        return sorted(osp.basename(d['img_path']).rsplit('.', 1)[0]
+                      for d in ds.load_data_list())
+
+    assert kept == val_photos(src / 'dawn_fog') == val_photos(val)
+
+
+@pytest.mark.slow
+def test_dry_run_of_the_generated_to_real_set(tmp_path, monkeypatch):
+    """The generated -> real set as the dry run runs it: tiny generated
+    scenes and a tiny real-fog folder written here, one row for 2
+    iterations, tested on generated clear and foggy val and on the fog
+    folder (--transfer-root), with a seeded stand-in trunk's weights."""
+    import torch
+    from mmdet.models.backbones import MobileNetV2
+
+    from cbnet_tools import pretrained as pt
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
+    os.makedirs(pt.pretrained_dir())
+    torch.manual_seed(1)
+    torch.save(dict(state_dict=MobileNetV2().state_dict()),
+               pt.pretrained_path('mobilenet_v2'))
+    r = runner(tmp_path, '--dry-run', '--data', str(tmp_path / 'none'),
+               '--sets', 'fog_generated_to_real')
+    rec = ra.step_harness(r, dict(os.environ, OMP_NUM_THREADS='1'))
+    (g2r,) = rec['sets']
+    assert g2r['status'] == 'ok', g2r
+    assert g2r['data'] == g2r['transfer'] == 'tiny, generated (dry run)'
+    assert '--transfer-root' in g2r['command']
+    with open(tmp_path / 'work' / 'harness' / 'fog_generated_to_real' /
+              'compare.json') as f:
+        (run,) = json.load(f)['runs']
+    assert run['recipe'] == 'Cascade Mask R-CNN, generated clear'
+    assert list(run['metrics'])[0] == 'clear'
+    assert list(run['metrics'])[-1] == 'real fog'

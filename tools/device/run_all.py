@@ -89,7 +89,20 @@ def _dawn_fog_set(dry_only):
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder')
 
 
-#: Per set: ``data`` (its folder under ``--data``), ``args`` (the
+def _transfer_dry_args(only):
+    """The dry run of a transfer set: the one row ``only``, 2 iterations
+    at 256x128, tested on the tiny fog folder too."""
+    return ['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
+            '--batch-size', '2', '--num-workers', '0', '--only', only,
+            '--img-scale', '256', '128', '--cfg-options',
+            'test_dataloader.num_workers=0',
+            'test_dataloader.persistent_workers=False']
+
+
+#: Per set: ``data`` (its folder under ``--data``), optionally
+#: ``transfer`` (a second folder it is also tested on, --transfer-root,
+#: with ``transfer_tiny`` for the dry run) and ``make`` (the command that
+#: makes ``data`` on the machine when it is not carried), ``args`` (the
 #: compare_recipes.py budget on the device), ``needs`` (files, relative to
 #: the repository, the set's recipes read: carried with the call),
 #: ``dry_args`` / ``dry_needs`` (the dry run's tiny budget) and ``tiny``
@@ -161,7 +174,41 @@ SETS = {
                   'test_dataloader.persistent_workers=False'],
         dry_needs=[],
         tiny=None),
+    # issue 44, the transfer experiment: trained on the clear COCO street
+    # photos (the coco_street folder as above), every run also tested on
+    # DAWN's real fog (``transfer``: a second carried folder, passed as
+    # --transfer-root). Only DAWN's 65 val photos are tested, so --prepare
+    # copies those and every XML (the seeded split reads the XMLs' names:
+    # :data:`VAL_ONLY`), which keeps the call under 64 MiB. Its ceiling
+    # is the realfog_pretrained record (compare_recipes.py --ceiling).
+    'fog_transfer': dict(
+        data='coco_street', transfer='dawn_fog_val',
+        args=['--seeds', '0', '1', '2'],
+        needs=[],
+        dry_args=_transfer_dry_args('Cascade Mask R-CNN, clear'),
+        dry_needs=[],
+        tiny=None,
+        transfer_tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
+    # issue 44 item 3, generated -> real: trained on the generated
+    # benchmark (made on the device by ``make``: the generator is
+    # deterministic, so nothing is carried but DAWN), tested on DAWN too
+    'fog_generated_to_real': dict(
+        data='cityscapes_like_bench', transfer='dawn_fog_val',
+        make=['tools/misc/generate_cityscapes_like.py', '{path}',
+              '--preset', 'bench', '--nproc', '{nproc}', '--convert'],
+        args=['--seeds', '0', '1', '2'],
+        needs=[],
+        dry_args=_transfer_dry_args('Cascade Mask R-CNN, generated clear'),
+        dry_needs=[],
+        tiny='cbnet_tools.synthetic.cityscapes_like:tiny_converted',
+        transfer_tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
 }
+
+#: Transfer folders that --prepare fills with the val photos of the
+#: seeded split only (and every XML): folder -> (the full folder it is
+#: copied from, the split's val_fraction and seed as the configs set
+#: them: configs/realfog/_base_/voc-fog_box.py).
+VAL_ONLY = {'dawn_fog_val': ('dawn_fog', 0.3, 0)}
 
 #: Wheels the device image lacks (its package list: /work/.library/device
 #: KINDS.md, "Python packages already there"), for Python 3.12, x86_64;
@@ -190,7 +237,7 @@ DRY_SPEED = ['--size', '64', '128', '--train-batch-size', '2',
 
 #: Time boxes (seconds) of the real run; the harness gets what is left.
 BOXES = dict(install=90, build=420, fallback_build=180, tests=90,
-             speed_pass=60, report=60, pack=30)
+             speed_pass=60, report=60, pack=30, make_data=120)
 DRY_BOXES = dict(install=30, build=0, fallback_build=0, tests=120,
                  speed_pass=300, report=60, pack=10)
 #: A harness set given less than this is skipped (seconds).
@@ -662,26 +709,42 @@ def option_values(argv, option):
     return vals
 
 
-def set_data(r: Runner, env, name, spec):
-    """The set's data folder; the dry run writes tiny data if missing."""
-    path = osp.join(r.args.data, spec['data']) if r.args.data else None
+def set_data(r: Runner, env, name, spec, key='data', tiny_key='tiny'):
+    """A folder of the set (``key``: its training data, or ``'transfer'``,
+    the folder it is also tested on): carried, made on the machine by the
+    set's ``make`` command (training data only), or, in a dry run, tiny
+    data written here."""
+    folder = spec[key]
+    path = osp.join(r.args.data, folder) if r.args.data else None
     if path and osp.isdir(path):
         return path, 'carried'
+    make = spec.get('make') if key == 'data' else None
+    if make and not r.args.dry_run:
+        path = osp.join(r.work, 'data', folder)
+        if not osp.isdir(path):
+            argv = [a.format(path=path, nproc=os.cpu_count() or 1)
+                    for a in make]
+            res = r.run([r.args.python] + argv, BOXES['make_data'],
+                        f'harness_{name}_{key}_make', env)
+            if res['rc'] != 0:
+                return None, (f'{folder} could not be made: '
+                              f'{" ".join(make)} (its log in the records)')
+        return path, 'made on the machine'
     if not r.args.dry_run:
-        return None, (f'data of set {name!r} not found: {path} (carry it, '
-                      'docs/benchmarks.md)')
-    path = osp.join(r.work, 'data', name)
+        return None, (f'{key} of set {name!r} not found: {path} (carry '
+                      'it, docs/benchmarks.md)')
+    path = osp.join(r.work, 'data', f'{name}_{key}')
     if not osp.isdir(path):
-        if not spec['tiny']:
-            return None, (f'set {name!r} has no tiny data of its own: give '
-                          f'its converted folder under --data')
-        module, func = spec['tiny'].split(':')
+        if not spec.get(tiny_key):
+            return None, (f'set {name!r} has no tiny {key} of its own: '
+                          f'give its converted folder under --data')
+        module, func = spec[tiny_key].split(':')
         code = (f'import sys; from {module} import {func}; '
                 f'{func}(sys.argv[1])')
         res = r.run([r.args.python, '-c', code, path], 120,
-                    f'harness_{name}_tiny_data', env)
+                    f'harness_{name}_{key}_tiny', env)
         if res['rc'] != 0:
-            return None, 'tiny data could not be written'
+            return None, f'tiny {key} could not be written'
     return path, 'tiny, generated (dry run)'
 
 
@@ -701,11 +764,17 @@ def step_harness(r: Runner, env) -> dict:
             continue
         data, how = set_data(r, env, name, spec)
         rec['data'] = how
+        transfer = None
+        if data is not None and spec.get('transfer'):
+            transfer, how = set_data(r, env, name, spec, 'transfer',
+                                     'transfer_tiny')
+            rec['transfer'] = how
         missing = [p for p in spec['dry_needs' if dry else 'needs']
                    if not osp.exists(osp.join(ROOT, p))]
-        if data is None or missing:
+        if data is None or (spec.get('transfer') and transfer is None) \
+                or missing:
             rec['status'] = 'failed'
-            rec['note'] = how if data is None else \
+            rec['note'] = how if not missing else \
                 f'missing (carry them): {missing}'
             continue
         set_args = list(spec['dry_args' if dry else 'args'])
@@ -714,6 +783,8 @@ def step_harness(r: Runner, env) -> dict:
                osp.join('tools', 'analysis_tools', 'compare_recipes.py'),
                '--set', name, '--data-root', data, '--work-dir', work,
                '--threads', '1'] + set_args
+        if transfer is not None:
+            cmd += ['--transfer-root', transfer]
         n = min(count_runs(r.args, env, name, set_args), r.args.max_procs)
         rec.update(processes=n, command=' '.join(map(shlex.quote, cmd)))
         r.log(f'harness {name}: {n} processes, box {share:.0f} s')
@@ -823,12 +894,22 @@ def prepare(args) -> int:
     carry = [osp.relpath(args.wheels, ROOT)]
     for name in args.sets:
         spec = set_spec(name)
-        src = osp.join(args.data_src, spec['data']) if args.data_src \
-            else None
-        dst = osp.join(args.data, spec['data'])
-        if src and not osp.isdir(dst):
-            shutil.copytree(src, dst)  # a link would travel as a link
-        carry.append(osp.relpath(dst, ROOT))
+        # the training data (unless the machine makes it) and the folder
+        # the set is also tested on
+        folders = [spec[k] for k in ('data', 'transfer') if spec.get(k)
+                   and not (k == 'data' and spec.get('make'))]
+        for folder in folders:
+            src = osp.join(args.data_src, VAL_ONLY.get(folder, (
+                folder,))[0]) if args.data_src else None
+            dst = osp.join(args.data, folder)
+            if src and not osp.isdir(dst):
+                if folder in VAL_ONLY:
+                    copy_val_only(args.python, src, dst,
+                                  *VAL_ONLY[folder][1:])
+                else:  # a link would travel as a link
+                    shutil.copytree(src, dst)
+            if osp.relpath(dst, ROOT) not in carry:
+                carry.append(osp.relpath(dst, ROOT))
         carry += [p for p in spec['needs'] if p not in carry]
     if args.pretrained:
         carry.append(osp.relpath(args.pretrained, ROOT))
@@ -856,6 +937,29 @@ def prepare(args) -> int:
               '(--sets)', file=sys.stderr)
         return 1
     return 1 if missing else 0
+
+
+def copy_val_only(python, src, dst, val_fraction, seed):
+    """Copy a VOC folder's ``Annotations/`` and the photos of the val
+    subset of its seeded split (the dataset's own ``seeded_split``, run by
+    the project's interpreter: this script imports nothing of it)."""
+    code = ('import glob, os.path as osp, sys; from cbnet_mmdet.datasets.'
+            'voc_fog import seeded_split; ids = [osp.basename(p)[:-4] for '
+            'p in glob.glob(osp.join(sys.argv[1], "Annotations", "*.xml"))]'
+            '; print("\\n".join(seeded_split(ids, "val", float(sys.argv[2]), '
+            'int(sys.argv[3]))))')
+    val = subprocess.run([python, '-c', code, src, str(val_fraction),
+                          str(seed)], capture_output=True, text=True,
+                         check=True).stdout.split()
+    shutil.copytree(osp.join(src, 'Annotations'),
+                    osp.join(dst, 'Annotations'))
+    os.makedirs(osp.join(dst, 'JPEGImages'))
+    photos = {osp.splitext(f)[0]: f for f in
+              os.listdir(osp.join(src, 'JPEGImages'))}
+    for i in val:
+        shutil.copy2(osp.join(src, 'JPEGImages', photos[i]),
+                     osp.join(dst, 'JPEGImages', photos[i]))
+    return val
 
 
 def tree_bytes(path) -> int:
