@@ -72,6 +72,18 @@ ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DEFAULT_SETS = ['realfog_pretrained']
 
 
+def _dry_args(only=None, seeds=('0', ), scale=(160, 96)):
+    """A dry run's compare_recipes.py arguments: 2 iterations of the row
+    ``only`` (every row when None) for ``seeds`` at ``scale`` (w, h),
+    batch 2, no worker processes."""
+    rows = ['--only', only] if only is not None else []
+    return (['--seeds', *seeds, '--iters', '2', '--warmup-iters', '1',
+             '--batch-size', '2', '--num-workers', '0'] + rows +
+            ['--img-scale', str(scale[0]), str(scale[1]), '--cfg-options',
+             'test_dataloader.num_workers=0',
+             'test_dataloader.persistent_workers=False'])
+
+
 def _dawn_fog_set(dry_only):
     """A set on DAWN's fog at its preset's budget, 3 seeds, whose dry run
     trains the one row ``dry_only`` for 2 iterations on a tiny VOC
@@ -80,11 +92,7 @@ def _dawn_fog_set(dry_only):
         data='dawn_fog',
         args=['--seeds', '0', '1', '2'],
         needs=[],
-        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
-                  '--batch-size', '2', '--num-workers', '0',
-                  '--only', dry_only, '--img-scale', '160', '96',
-                  '--cfg-options', 'test_dataloader.num_workers=0',
-                  'test_dataloader.persistent_workers=False'],
+        dry_args=_dry_args(dry_only),
         dry_needs=[],
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder')
 
@@ -92,11 +100,7 @@ def _dawn_fog_set(dry_only):
 def _transfer_dry_args(only):
     """The dry run of a transfer set: the one row ``only``, 2 iterations
     at 256x128, tested on the tiny fog folder too."""
-    return ['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
-            '--batch-size', '2', '--num-workers', '0', '--only', only,
-            '--img-scale', '256', '128', '--cfg-options',
-            'test_dataloader.num_workers=0',
-            'test_dataloader.persistent_workers=False']
+    return _dry_args(only, scale=(256, 128))
 
 
 #: Per set: ``data`` (its folder under ``--data``), optionally
@@ -135,11 +139,7 @@ SETS = {
         data='dawn_fog',
         args=['--seeds', '0', '1', '2'],
         needs=[],
-        dry_args=['--seeds', '0', '1', '--iters', '2', '--warmup-iters',
-                  '1', '--batch-size', '2', '--num-workers', '0',
-                  '--only', 'YOLOX-Tiny', '--img-scale', '160', '96',
-                  '--cfg-options', 'test_dataloader.num_workers=0',
-                  'test_dataloader.persistent_workers=False'],
+        dry_args=_dry_args('YOLOX-Tiny', seeds=('0', '1')),
         dry_needs=[],
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
     # the parts of the two real-fog recipes (configs/pretrained/parts/),
@@ -167,11 +167,7 @@ SETS = {
         data='coco_street',
         args=['--seeds', '0', '1', '2'],
         needs=[],
-        dry_args=['--seeds', '0', '--iters', '2', '--warmup-iters', '1',
-                  '--batch-size', '2', '--num-workers', '0',
-                  '--img-scale', '256', '128', '--cfg-options',
-                  'test_dataloader.num_workers=0',
-                  'test_dataloader.persistent_workers=False'],
+        dry_args=_dry_args(scale=(256, 128)),
         dry_needs=[],
         tiny=None),
     # issue 44, the transfer experiment: trained on the clear COCO street
