@@ -1,6 +1,7 @@
 """model-index.yml and the metafiles (issue 14), read as mim and MMEngine
 read them."""
 import glob
+import json
 import os.path as osp
 
 import pytest
@@ -67,6 +68,77 @@ def test_results_say_whose_numbers_they_are(models):
                      'projects/peer_dehaze/configs/pretrained/'))
             for value in result['Metrics'].values():
                 assert 0 <= value <= 100
+
+
+#: The metafiles' metric names -> the comparison records' metric keys.
+RECORD_KEYS = {'box AP': 'coco/bbox_mAP', 'box AP50': 'coco/bbox_mAP_50',
+               'mask AP': 'coco/segm_mAP', 'mask AP50': 'coco/segm_mAP_50'}
+
+
+def record_means(config, min_seeds=3, root=ROOT):
+    """Per (record, recipe, condition) of every comparison record under
+    ``root``/docs that ran ``config`` with at least ``min_seeds`` seeds:
+    the mean of each metric over its seeds, in percent."""
+    groups = {}
+    for path in glob.glob(osp.join(root, 'docs', '**', '*.json'),
+                          recursive=True):
+        with open(path, encoding='utf-8') as f:
+            record = json.load(f)
+        runs = record.get('runs') if isinstance(record, dict) else None
+        for run in runs if isinstance(runs, list) else []:
+            if not str(run.get('config', '')).endswith(config):
+                continue
+            for condition, metrics in run.get('metrics', {}).items():
+                group = groups.setdefault(
+                    (osp.relpath(path, root), run['recipe'], condition), {})
+                group.setdefault('seeds', set()).add(run['seed'])
+                for key, value in metrics.items():
+                    group.setdefault(key, []).append(100 * value)
+    return {
+        where: {k: sum(v) / len(v) for k, v in group.items() if k != 'seeds'}
+        for where, group in groups.items() if len(group['seeds']) >= min_seeds
+    }
+
+
+def real_photo_results(models):
+    return [(m['Config'], result['Metrics']) for m in models
+            for result in m['Results']
+            if result['Dataset'].endswith('(ours, real photographs, 3-seed '
+                                          'mean)')]
+
+
+def test_our_real_photo_results_are_record_means(models):
+    """Every '3-seed mean' of a metafile is the mean over 3 seeds of one
+    record under docs/ that ran that config."""
+    results = real_photo_results(models)
+    assert len(results) >= 5, results
+    for config, metrics in results:
+        means = record_means(config)
+        assert means, f'{config}: no record under docs/ has 3 seeds of it'
+        assert any(
+            all(abs(mean[RECORD_KEYS[name]] - value) <= 0.05 + 1e-9
+                for name, value in metrics.items())
+            for mean in means.values()), (
+                f'{config}: {metrics} is no 3-seed mean of '
+                f'{sorted(means)}')
+
+
+def test_record_means_see_seeds_and_configs(tmp_path):
+    """The check above fails on a config with fewer than 3 seeds or a
+    mean that is not the record's."""
+    docs = tmp_path / 'docs'
+    docs.mkdir()
+    runs = [dict(recipe='r', seed=s, config='configs/x/a.py',
+                 metrics={'fog': {'coco/bbox_mAP': v}})
+            for s, v in enumerate((0.10, 0.12, 0.14))]
+    (docs / 'rec.json').write_text(json.dumps(dict(runs=runs)))
+    root = str(tmp_path)
+    means = record_means('configs/x/a.py', root=root)
+    assert list(means) == [('docs/rec.json', 'r', 'fog')]
+    assert abs(means[('docs/rec.json', 'r', 'fog')]['coco/bbox_mAP']
+               - 12.0) < 1e-9
+    assert record_means('configs/x/a.py', min_seeds=4, root=root) == {}
+    assert record_means('configs/x/b.py', root=root) == {}
 
 
 def test_mim_reads_the_index():
