@@ -116,7 +116,9 @@ def plot(summary: dict, betas: Sequence[float], path: str,
 
     With no fog density (real data), a bar per recipe on the last
     condition: the only one, or a second test set (``transfer_test``: real
-    fog after clear training).
+    fog after clear training). With fog densities and a second test set
+    after them (real fog after training on generated scenes), the curve
+    and, beside it, those bars.
 
     Args:
         summary (dict): :func:`summarize` output.
@@ -141,13 +143,21 @@ def plot(summary: dict, betas: Sequence[float], path: str,
         column = next((c for c in ('mask AP', 'box AP') if c in cols and
                        all(e.get(c) is not None for e in clear)), cols[-1])
     xs = [0.0] + list(betas)
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
     if not betas:
+        fig, ax = plt.subplots(figsize=(5.5, 3.8))
         _bars(ax, summary, summary['conditions'][-1], column)
         fig.tight_layout()
         fig.savefig(path, dpi=120)
         plt.close(fig)
         return path
+    # conditions past clear and the fog densities: a second test set
+    extra = summary['conditions'][len(xs):]
+    if extra:
+        fig, (ax, bar_ax) = plt.subplots(
+            1, 2, figsize=(10, 3.8), gridspec_kw=dict(width_ratios=[3, 2]))
+        _bars(bar_ax, summary, extra[-1], column)
+    else:
+        fig, ax = plt.subplots(figsize=(5.5, 3.8))
     for recipe in summary['recipes']:
         entry = summary['summary'][recipe]
         stats = [entry[c].get(column) for c in summary['conditions']]

@@ -28,6 +28,37 @@ def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
     assert labels == ['mask AP (%)']
 
 
+def test_plot_adds_bars_for_a_second_test_set(tmp_path, monkeypatch):
+    """Fog densities and then real fog (generated -> real): the curve over
+    clear and the densities, and bars on real fog beside it."""
+    import matplotlib.axes
+    runs = [fake_run('A', s, 0.4, 0.3, key='coco/bbox_mAP')
+            for s in range(2)]
+    for run, ap in zip(runs, (0.01, 0.03)):
+        run['metrics']['real fog'] = {'coco/bbox_mAP': ap}
+    summary = rc.summarize(runs, [0.02])
+    assert summary['conditions'][-1] == 'real fog'
+    labels, bars = [], []
+    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
+                        lambda self, text, **kw: labels.append(text))
+    real_bar = matplotlib.axes.Axes.bar
+    monkeypatch.setattr(
+        matplotlib.axes.Axes, 'bar',
+        lambda self, x, height, **kw: bars.append(list(height)) or
+        real_bar(self, x, height, **kw))
+    path = report.plot(summary, [0.02], str(tmp_path / 'p.png'))
+    assert labels == ['box AP (%) on real fog', 'box AP (%)']
+    assert bars == [[2.0]]  # the mean of 1 and 3, percent
+    with open(path, 'rb') as f:
+        assert f.read(8) == b'\x89PNG\r\n\x1a\n'
+    # without the second test set: the curve alone
+    labels.clear()
+    for run in runs:
+        del run['metrics']['real fog']
+    report.plot(rc.summarize(runs, [0.02]), [0.02], str(tmp_path / 'q.png'))
+    assert labels == ['box AP (%)']
+
+
 def test_plot_writes_a_png(tmp_path):
     runs = [fake_run('A', s, 0.3, 0.2) for s in range(2)]
     path = report.plot(rc.summarize(runs, [0.02]), [0.02],
