@@ -8,6 +8,7 @@ import pytest
 from mim.commands.search import convert2df
 from mmengine.infer import BaseInferencer
 from modelindex import load
+from record_helpers import seed_values
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 #: The configs of the plugin and of the projects (the peer baseline's).
@@ -79,25 +80,18 @@ def record_means(config, min_seeds=3, root=ROOT):
     """Per (record, recipe, condition) of every comparison record under
     ``root``/docs that ran ``config`` with at least ``min_seeds`` seeds:
     the mean of each metric over its seeds, in percent."""
-    groups = {}
+    means = {}
     for path in glob.glob(osp.join(root, 'docs', '**', '*.json'),
                           recursive=True):
         with open(path, encoding='utf-8') as f:
             record = json.load(f)
-        runs = record.get('runs') if isinstance(record, dict) else None
-        for run in runs if isinstance(runs, list) else []:
-            if not str(run.get('config', '')).endswith(config):
-                continue
-            for condition, metrics in run.get('metrics', {}).items():
-                group = groups.setdefault(
-                    (osp.relpath(path, root), run['recipe'], condition), {})
-                group.setdefault('seeds', set()).add(run['seed'])
-                for key, value in metrics.items():
-                    group.setdefault(key, []).append(100 * value)
-    return {
-        where: {k: sum(v) / len(v) for k, v in group.items() if k != 'seeds'}
-        for where, group in groups.items() if len(group['seeds']) >= min_seeds
-    }
+        for (recipe, condition, key), values in seed_values(
+                record, config).items():
+            if len({seed for seed, _ in values}) >= min_seeds:
+                means.setdefault((osp.relpath(path, root), recipe, condition),
+                                 {})[key] = (sum(v for _, v in values) /
+                                             len(values))
+    return means
 
 
 def real_photo_results(models):

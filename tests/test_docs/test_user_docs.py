@@ -24,6 +24,7 @@ import re
 import statistics
 
 import pytest
+from record_helpers import seed_values
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 README_MAX_LINES = 230
@@ -245,21 +246,13 @@ def record_numbers(record):
             out.append(float(obj))
 
     leaves(record)
-    runs = record.get('runs') if isinstance(record, dict) else None
-    if isinstance(runs, list):
-        groups = {}
-        for run in runs:
-            for condition, metrics in run.get('metrics', {}).items():
-                for key, value in metrics.items():
-                    if isinstance(value, (int, float)):
-                        groups.setdefault((run['recipe'], condition, key),
-                                          []).append(100 * value)
-        for values in groups.values():
-            mean = sum(values) / len(values)
-            out.append(mean)
-            if len(values) > 1:
-                out.append((sum(
-                    (v - mean)**2 for v in values) / (len(values) - 1))**0.5)
+    for values in seed_values(record).values():
+        values = [v for _, v in values]
+        mean = sum(values) / len(values)
+        out.append(mean)
+        if len(values) > 1:
+            out.append((sum(
+                (v - mean)**2 for v in values) / (len(values) - 1))**0.5)
     for cell in (record.get('inference_round_times_s') or {}).values():
         medians = [statistics.median(t) for t in cell.values()]
         out += [a / b for a in medians for b in medians]
