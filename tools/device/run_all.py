@@ -97,12 +97,6 @@ def _dawn_fog_set(dry_only):
         tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder')
 
 
-def _transfer_dry_args(only):
-    """The dry run of a transfer set: the one row ``only``, 2 iterations
-    at 256x128, tested on the tiny fog folder too."""
-    return _dry_args(only, scale=(256, 128))
-
-
 #: Per set: ``data`` (its folder under ``--data``), optionally
 #: ``transfer`` (a second folder it is also tested on, --transfer-root,
 #: with ``transfer_tiny`` for the dry run) and ``make`` (the command that
@@ -181,7 +175,8 @@ SETS = {
         data='coco_street', transfer='dawn_fog_val',
         args=['--seeds', '0', '1', '2'],
         needs=[],
-        dry_args=_transfer_dry_args('Cascade Mask R-CNN, clear'),
+        # one row at 256x128, tested on the tiny fog folder too
+        dry_args=_dry_args('Cascade Mask R-CNN, clear', scale=(256, 128)),
         dry_needs=[],
         tiny=None,
         transfer_tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
@@ -194,7 +189,8 @@ SETS = {
               '--preset', 'bench', '--nproc', '{nproc}', '--convert'],
         args=['--seeds', '0', '1', '2'],
         needs=[],
-        dry_args=_transfer_dry_args('Cascade Mask R-CNN, generated clear'),
+        dry_args=_dry_args('Cascade Mask R-CNN, generated clear',
+                           scale=(256, 128)),
         dry_needs=[],
         tiny='cbnet_tools.synthetic.cityscapes_like:tiny_converted',
         transfer_tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
