@@ -167,6 +167,9 @@ def plot(summary: dict, betas: Sequence[float], path: str,
         ax.errorbar([p[0] for p in pts], [p[1]['mean'] for p in pts],
                     yerr=[p[1]['std'] for p in pts], marker='o', capsize=3,
                     label=recipe)
+    # ticks at the tested densities only (matplotlib's own run together)
+    ax.set_xticks(xs)
+    ax.set_xticklabels([f'{x:g}' for x in xs])
     ax.set_xlabel('fog density beta (1/m; 0 = clear)')
     ax.set_ylabel(f'{column} (%)')
     ax.grid(alpha=0.3)
