@@ -59,10 +59,19 @@ def test_plot_adds_bars_for_a_second_test_set(tmp_path, monkeypatch):
     assert labels == ['box AP (%)']
 
 
-def test_plot_writes_a_png(tmp_path):
+def test_plot_writes_a_png(tmp_path, monkeypatch):
+    import matplotlib.axes
     runs = [fake_run('A', s, 0.3, 0.2) for s in range(2)]
+    ticks = []
+    real_ticks = matplotlib.axes.Axes.set_xticklabels
+    monkeypatch.setattr(
+        matplotlib.axes.Axes, 'set_xticklabels',
+        lambda self, labels, **kw: ticks.append(list(labels)) or
+        real_ticks(self, labels, **kw))
     path = report.plot(rc.summarize(runs, [0.02]), [0.02],
                        str(tmp_path / 'p.png'))
+    # the density axis is ticked at clear and the tested densities only
+    assert ticks == [['0', '0.02']]
     with open(path, 'rb') as f:
         assert f.read(8) == b'\x89PNG\r\n\x1a\n'
 
