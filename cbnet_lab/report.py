@@ -143,21 +143,29 @@ def plot(summary: dict, betas: Sequence[float], path: str,
         column = next((c for c in ('mask AP', 'box AP') if c in cols and
                        all(e.get(c) is not None for e in clear)), cols[-1])
     xs = [0.0] + list(betas)
-    if not betas:
-        fig, ax = plt.subplots(figsize=(5.5, 3.8))
-        _bars(ax, summary, summary['conditions'][-1], column)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        return path
-    # conditions past clear and the fog densities: a second test set
-    extra = summary['conditions'][len(xs):]
-    if extra:
-        fig, (ax, bar_ax) = plt.subplots(
+    # the curve over clear and the densities; bars on the last condition
+    # when there is no density (real data) or a second test set follows
+    curve = bool(betas)
+    bars = not betas or len(summary['conditions']) > len(xs)
+    if curve and bars:
+        fig, (curve_ax, bar_ax) = plt.subplots(
             1, 2, figsize=(10, 3.8), gridspec_kw=dict(width_ratios=[3, 2]))
-        _bars(bar_ax, summary, extra[-1], column)
     else:
-        fig, ax = plt.subplots(figsize=(5.5, 3.8))
+        fig, curve_ax = plt.subplots(figsize=(5.5, 3.8))
+        bar_ax = curve_ax
+    if bars:
+        _bars(bar_ax, summary, summary['conditions'][-1], column)
+    if curve:
+        _curve(curve_ax, summary, xs, column)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _curve(ax, summary: dict, xs: Sequence[float], column: str) -> None:
+    """``column`` (mean +- std) per recipe against the fog density ``xs``
+    (clear at 0), over the first ``len(xs)`` conditions."""
     for recipe in summary['recipes']:
         entry = summary['summary'][recipe]
         stats = [entry[c].get(column) for c in summary['conditions']]
@@ -174,10 +182,6 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     ax.set_ylabel(f'{column} (%)')
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
 
 
 def _bars(ax, summary: dict, condition: str, column: str) -> None:

@@ -11,15 +11,27 @@ def fake_run(recipe, seed, clear, foggy, key='coco/segm_mAP'):
                          'foggy beta=0.02': {key: foggy}})
 
 
-def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
+def spy(monkeypatch, method, arg=0):
+    """Positional argument ``arg`` of every call of ``Axes.<method>`` (a
+    label, bar heights...), in call order; the calls still draw."""
     import matplotlib.axes
+    calls = []
+    real = getattr(matplotlib.axes.Axes, method)
+
+    def record(self, *args, **kwargs):
+        calls.append(args[arg])
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, method, record)
+    return calls
+
+
+def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
     runs = [fake_run('masks', 0, 0.3, 0.2),
             fake_run('boxes', 0, 0.4, 0.3, key='coco/bbox_mAP')]
     runs[0]['metrics']['clear']['coco/bbox_mAP'] = 0.35
     runs[0]['metrics']['foggy beta=0.02']['coco/bbox_mAP'] = 0.25
-    labels = []
-    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
-                        lambda self, text, **kw: labels.append(text))
+    labels = spy(monkeypatch, 'set_ylabel')
     report.plot(rc.summarize(runs, [0.02]), [0.02], str(tmp_path / 'p.png'))
     assert labels == ['box AP (%)']  # every recipe on the plot
     labels.clear()
@@ -31,24 +43,18 @@ def test_plot_draws_box_ap_when_a_recipe_has_no_masks(tmp_path, monkeypatch):
 def test_plot_adds_bars_for_a_second_test_set(tmp_path, monkeypatch):
     """Fog densities and then real fog (generated -> real): the curve over
     clear and the densities, and bars on real fog beside it."""
-    import matplotlib.axes
     runs = [fake_run('A', s, 0.4, 0.3, key='coco/bbox_mAP')
             for s in range(2)]
     for run, ap in zip(runs, (0.01, 0.03)):
         run['metrics']['real fog'] = {'coco/bbox_mAP': ap}
     summary = rc.summarize(runs, [0.02])
     assert summary['conditions'][-1] == 'real fog'
-    labels, bars = [], []
-    monkeypatch.setattr(matplotlib.axes.Axes, 'set_ylabel',
-                        lambda self, text, **kw: labels.append(text))
-    real_bar = matplotlib.axes.Axes.bar
-    monkeypatch.setattr(
-        matplotlib.axes.Axes, 'bar',
-        lambda self, x, height, **kw: bars.append(list(height)) or
-        real_bar(self, x, height, **kw))
+    labels = spy(monkeypatch, 'set_ylabel')
+    heights = spy(monkeypatch, 'bar', arg=1)  # bar(x, height)
     path = report.plot(summary, [0.02], str(tmp_path / 'p.png'))
     assert labels == ['box AP (%) on real fog', 'box AP (%)']
-    assert bars == [[2.0]]  # the mean of 1 and 3, percent
+    # the mean of 1 and 3, percent
+    assert [list(h) for h in heights] == [[2.0]]
     with open(path, 'rb') as f:
         assert f.read(8) == b'\x89PNG\r\n\x1a\n'
     # without the second test set: the curve alone
@@ -60,18 +66,12 @@ def test_plot_adds_bars_for_a_second_test_set(tmp_path, monkeypatch):
 
 
 def test_plot_writes_a_png(tmp_path, monkeypatch):
-    import matplotlib.axes
     runs = [fake_run('A', s, 0.3, 0.2) for s in range(2)]
-    ticks = []
-    real_ticks = matplotlib.axes.Axes.set_xticklabels
-    monkeypatch.setattr(
-        matplotlib.axes.Axes, 'set_xticklabels',
-        lambda self, labels, **kw: ticks.append(list(labels)) or
-        real_ticks(self, labels, **kw))
+    ticks = spy(monkeypatch, 'set_xticklabels')
     path = report.plot(rc.summarize(runs, [0.02]), [0.02],
                        str(tmp_path / 'p.png'))
     # the density axis is ticked at clear and the tested densities only
-    assert ticks == [['0', '0.02']]
+    assert [list(t) for t in ticks] == [['0', '0.02']]
     with open(path, 'rb') as f:
         assert f.read(8) == b'\x89PNG\r\n\x1a\n'
 
