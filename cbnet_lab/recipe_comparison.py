@@ -27,6 +27,18 @@ comparison is still training is waited for, one that is missing (never
 trained, or restored from a record without its weights) is an error
 naming the file.
 
+Runs trained by another set. Some rows of a set train exactly what a
+row of another set trains (:data:`SET_TRAINED_AS`: the fog_transfer set's
+clear-only rows are the coco_street set's rows with a second test set;
+checked: the two configs must be equal but for their ``transfer_*`` and
+``compare_*`` keys). Given ``weights_from`` (the other set's work dir:
+same budget, overrides and data), each seed's finished run there is
+tested here instead of trained again: its checkpoint is linked into this
+run's folder, and the run records its train time and where it was
+trained (``trained_in``, ``trained_as``). A run that another process is
+still training there is waited for; a seed with no finished run there,
+or one without its weights (a restored record), is trained here as usual.
+
 Real data. When the recipes' configs set ``test_condition = NAME`` (the
 real-fog configs of ``configs/realfog/``, set ``realfog``), ``data_root``
 is that dataset (a VOC folder) and each run is tested on the config's own
@@ -41,6 +53,7 @@ import os
 import os.path as osp
 import platform
 import re
+import shutil
 import time
 from dataclasses import asdict, dataclass
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
@@ -409,6 +422,18 @@ SET_CEILINGS = {
               'CBNet-PT': 'CBNet-PT'}),
 }
 
+#: Rows of a set that train exactly as rows of another set (their configs
+#: add test settings only, :func:`trained_as` checks it): with
+#: ``weights_from`` (that set's work dir) their finished runs are tested
+#: instead of trained again. ``fog_transfer``: the clear-only floor is the
+#: coco_street recipe with DAWN as a second test set.
+SET_TRAINED_AS = {
+    'fog_transfer': dict(
+        set='coco_street',
+        rows={'Cascade Mask R-CNN, clear': 'Cascade Mask R-CNN',
+              'CBNet-PT, clear': 'CBNet-PT'}),
+}
+
 
 @dataclass
 class Preset:
@@ -623,6 +648,101 @@ def weights_sources(
     return sources
 
 
+def trained_as(set_name: Optional[str],
+               recipes: Sequence[Tuple[str, str]]) -> Dict[str, str]:
+    """Which of ``recipes`` train exactly as a row of another set.
+
+    Args:
+        set_name (str, optional): The comparison's set
+            (:data:`SET_TRAINED_AS`).
+        recipes (Sequence[tuple[str, str]]): (name, config path).
+
+    Returns:
+        dict: recipe name -> the other set's row name, for the recipes of
+        ``recipes`` that the set names.
+
+    Raises:
+        ValueError: The set has no such rows, or a row's config differs
+            from the other row's in more than its ``transfer_*`` /
+            ``compare_*`` keys: training one would not be training the
+            other.
+    """
+    spec = SET_TRAINED_AS.get(set_name)
+    if spec is None:
+        raise ValueError(
+            f'no row of the set {set_name!r} trains as another set\'s '
+            '(--weights-from is for ' + ', '.join(sorted(SET_TRAINED_AS)) +
+            ')')
+
+    def training_keys(config: str) -> dict:
+        return {k: v for k, v in Config.fromfile(config).to_dict().items()
+                if not k.startswith(('transfer_', 'compare_'))}
+
+    theirs = dict(resolve_recipes(spec['set']))
+    found = {}
+    for name, config in recipes:
+        other = spec['rows'].get(name)
+        if other is None:
+            continue
+        mine, its = training_keys(config), training_keys(theirs[other])
+        differ = sorted(k for k in set(mine) | set(its)
+                        if mine.get(k) != its.get(k))
+        if differ:
+            raise ValueError(
+                f'recipe {name!r} should train as the {spec["set"]} set\'s '
+                f'{other!r}, but their configs differ in {differ} (only '
+                'transfer_* and compare_* keys may)')
+        found[name] = other
+    return found
+
+
+def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
+                 cfg_options: Optional[dict] = None,
+                 data_root: Optional[str] = None
+                 ) -> Tuple[Optional[str], bool]:
+    """A run of recipe ``name`` and ``seed`` in another set's work dir.
+
+    Args:
+        weights_from (str): The other comparison's work dir.
+        name (str): The recipe's name there.
+        seed (int): The seed.
+        budget (Budget): This comparison's budget; the run's must match.
+        cfg_options (dict, optional): This comparison's overrides; the
+            run's must match.
+        data_root (str, optional): This comparison's data; where the other
+            work dir has a ``compare.json``, its data root must match.
+
+    Returns:
+        tuple: (the run's ``result.json`` when it is finished with its
+        weights on disk, else None; whether another live process is
+        training it now).
+
+    Raises:
+        FileNotFoundError: ``weights_from`` is not a folder.
+        ValueError: The run there was trained under another budget,
+            overrides or data.
+    """
+    if not osp.isdir(weights_from):
+        raise FileNotFoundError(
+            f'--weights-from {weights_from}: no such folder (the work dir '
+            'of the comparison that trained the rows)')
+    record = osp.join(weights_from, 'compare.json')
+    if data_root is not None and osp.isfile(record):
+        with open(record) as f:
+            theirs = json.load(f).get('data_root')
+        if theirs is not None and \
+                osp.realpath(theirs) != osp.realpath(data_root):
+            raise ValueError(
+                f'{weights_from} was trained on {theirs}, this comparison '
+                f'runs on {data_root}: its weights are not this data\'s')
+    path = result_file(weights_from, name, seed)
+    if not osp.isfile(path):
+        return None, held_elsewhere(weights_from, name, seed)
+    read_result(path, budget, cfg_options)  # the same budget and overrides
+    weights = checkpoint_file(weights_from, name, seed, budget)
+    return (path if osp.isfile(weights) else None), False
+
+
 def _options(cfg_options: Optional[dict]) -> dict:
     """``cfg_options`` as a run's record holds it (JSON types; {} for
     none)."""
@@ -710,7 +830,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
                cfg_options: Optional[dict] = None,
                weights_of: Optional[str] = None,
-               transfer_root: Optional[str] = None) -> dict:
+               transfer_root: Optional[str] = None,
+               trained_in: Optional[str] = None) -> dict:
     """Train one recipe with one seed and test it on clear and foggy val.
 
     Finished runs are read back from their ``result.json``. With
@@ -730,11 +851,16 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             test (a test-time variant); None trains this recipe.
         transfer_root (str, optional): The folder of the config's
             ``transfer_test`` set (None: the config's own).
+        trained_in (str, optional): The ``result.json`` of a finished run
+            that trained this recipe as it is (:func:`find_trained`): its
+            checkpoint is linked here and tested, nothing is trained.
 
     Returns:
         dict: ``recipe``, ``config``, ``seed``, ``train_time_s`` (None for
-        a test-time variant, which also has ``weights_of``), ``metrics``
-        (per condition: ``clear``, ``foggy beta=B``).
+        a test-time variant, which also has ``weights_of``; the source
+        run's with ``trained_in``, then also ``trained_in``: that run's
+        folder and ``trained_as``: its recipe), ``metrics`` (per
+        condition: ``clear``, ``foggy beta=B``).
     """
     from mmengine.runner import Runner
 
@@ -762,6 +888,23 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'{weights_of!r}, seed {seed}, but {checkpoint} does not '
                 f'exist; {why}')
         train_time, extra = None, dict(weights_of=weights_of)
+    elif trained_in is not None:
+        with open(trained_in) as f:
+            source = json.load(f)
+        checkpoint = checkpoint_file(out_dir, name, seed, budget)
+        if not osp.isfile(checkpoint):
+            weights = osp.join(osp.dirname(trained_in),
+                               osp.basename(checkpoint))
+            os.makedirs(run_dir, exist_ok=True)
+            try:  # the same file, not a copy, where the disk allows
+                os.link(weights, checkpoint)
+            except OSError:
+                shutil.copy2(weights, checkpoint)
+        train_time = source['train_time_s']
+        extra = dict(trained_in=osp.dirname(trained_in),
+                     trained_as=source['recipe'])
+        extra.update({k: source[k] for k in (
+            'resumed_at_iter', 'train_time_extrapolated') if k in source})
     else:
         require_pretrained(cfg)
         resumed = checkpoint_iter(cfg.load_from) \
@@ -1127,7 +1270,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             set_name: Optional[str] = None, wait_s: float = 30.0,
             train: bool = True, wait: bool = True,
             transfer_root: Optional[str] = None,
-            ceiling_record: Optional[str] = None) -> dict:
+            ceiling_record: Optional[str] = None,
+            weights_from: Optional[str] = None) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -1165,6 +1309,10 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         ceiling_record (str, optional): The ``compare.json`` of the set
             that is this set's in-domain ceiling (:data:`SET_CEILINGS`),
             tabulated under the results (``ceiling`` in the record).
+        weights_from (str, optional): The work dir of the set whose rows
+            some of this set's rows train as (:data:`SET_TRAINED_AS`):
+            its finished runs are tested instead of trained
+            (:func:`find_trained`); in the record when given.
 
     Several processes may run the same comparison (same ``out_dir``) at
     once, e.g. one per core with one thread each: each run is locked by
@@ -1176,6 +1324,16 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     """
     reference = reference_condition(recipes)
     sources = weights_sources(recipes)
+    # a tabulation (train=False) reads the runs here only
+    trained_elsewhere = trained_as(set_name, recipes) \
+        if weights_from and train else {}
+
+    def trained_there(name: str, seed: int) -> Tuple[Optional[str], bool]:
+        if name not in trained_elsewhere:
+            return None, False
+        return find_trained(weights_from, trained_elsewhere[name], seed,
+                            budget, cfg_options, data_root)
+
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)
         check_transfer(recipes, transfer_root)
@@ -1186,7 +1344,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
     # runs still to train (a test-time variant's test is not counted)
     left = sum(not osp.isfile(result_file(out_dir, n, s))
-               and sources[n] is None for n, _, s in jobs)
+               and sources[n] is None and trained_there(n, s)[0] is None
+               for n, _, s in jobs)
     results: Dict[int, dict] = {}
     spent, fresh = 0.0, 0
     pending = list(enumerate(jobs, 1))
@@ -1204,13 +1363,24 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 continue
             source = sources[name]
             if not done and source is not None and not osp.isfile(
-                    result_file(out_dir, source, seed)) and \
-                    held_elsewhere(out_dir, source, seed):
+                    result_file(out_dir, source, seed)) and (
+                    held_elsewhere(out_dir, source, seed) or any(
+                        (n, s) == (source, seed)
+                        for _, (n, _, s) in waiting)):
                 # a test-time variant of weights still being trained
+                # (here by another process, or in another set's work dir)
                 waiting.append((k, (name, config, seed)))
                 log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: tests '
                     f'the weights of {source!r}, which another process is '
                     'still training, later')
+                continue
+            trained_in, busy = (None, False) if done else \
+                trained_there(name, seed)
+            if busy:
+                waiting.append((k, (name, config, seed)))
+                log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: trains '
+                    f'as {trained_elsewhere[name]!r}, which another process '
+                    f'is training in {weights_from}, later')
                 continue
             lock = None if done else RunLock(osp.dirname(path))
             if lock is not None and not lock.acquire():
@@ -1225,6 +1395,13 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                        'min left')
             doing = 'training' if sources[name] is None else \
                 f'testing the weights of {sources[name]!r}'
+            if trained_in is not None:
+                doing = ('testing the weights trained in '
+                         f'{osp.dirname(trained_in)}')
+            elif name in trained_elsewhere and not done:
+                doing += (f' (no finished run of '
+                          f'{trained_elsewhere[name]!r} with its weights '
+                          f'in {weights_from})')
             log(f'[compare {k}/{len(jobs)}] {name}, seed {seed}: '
                 f'{"already done" if done else doing}{eta}')
             start = time.perf_counter()
@@ -1235,10 +1412,10 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 results[k] = run_recipe(
                     name, config, seed, budget, data_root, betas, out_dir,
                     cfg_options, weights_of=sources[name],
-                    transfer_root=transfer_root)
+                    transfer_root=transfer_root, trained_in=trained_in)
             finally:
                 lock.release()
-            if sources[name] is None:
+            if sources[name] is None and trained_in is None:
                 spent += time.perf_counter() - start
                 fresh += 1
                 left -= 1
@@ -1276,6 +1453,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         record['in_progress'] = in_progress
     if transfer_root is not None:
         record['transfer_root'] = transfer_root
+    if weights_from is not None:
+        record['weights_from'] = weights_from
     if cfg_options:
         record['cfg_options'] = _options(cfg_options)
     top, ceiling_md = ceiling(set_name, ceiling_record, summary['columns'])

@@ -8,6 +8,7 @@ import os
 import os.path as osp
 import platform
 import shutil
+from dataclasses import asdict
 
 import pytest
 from mmengine.config import Config
@@ -189,18 +190,14 @@ def test_a_test_only_row_whose_source_never_ran_is_a_clear_error(
         rc.checkpoint_file(str(tmp_path), dcp[0], 1, budget))
 
 
-def test_a_test_only_row_waits_for_its_source_in_other_hands(
-        tmp_path, monkeypatch):
-    """Two processes on one comparison: while another live process trains
-    the clear row, the test-only row of the same seed is deferred with it
-    (no error about missing weights)."""
-    out = str(tmp_path / 'runs')
-    recipes = [r for r in rc.resolve_recipes('fog_transfer')
-               if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
-    ran = []
+def fake_runs(monkeypatch):
+    """compare() with its runs, data checks and plot stubbed: the runs it
+    asks for, as (name, seed, trained_in, weights_of)."""
+    calls = []
 
-    def fake_run_recipe(name, config, seed, *args, **kwargs):
-        ran.append(name)
+    def fake_run_recipe(name, config, seed, *args, trained_in=None,
+                        weights_of=None, **kwargs):
+        calls.append((name, seed, trained_in, weights_of))
         return dict(recipe=name, seed=seed, train_time_s=None, metrics={
             'coco street': {'coco/bbox_mAP': 0.5},
             'real fog': {'coco/bbox_mAP': 0.2}})
@@ -209,10 +206,26 @@ def test_a_test_only_row_waits_for_its_source_in_other_hands(
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
     monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
-    lock = osp.dirname(rc.result_file(out, recipes[0][0], 0))
-    os.makedirs(lock)
-    with open(osp.join(lock, '.lock'), 'w') as f:
-        f.write(f'{platform.node()}:{os.getppid()}')  # a live process
+    return calls
+
+
+def hold(run_dir):
+    """Lock a run's folder for a live process (this test's parent)."""
+    os.makedirs(run_dir, exist_ok=True)
+    with open(osp.join(run_dir, '.lock'), 'w') as f:
+        f.write(f'{platform.node()}:{os.getppid()}')
+
+
+def test_a_test_only_row_waits_for_its_source_in_other_hands(
+        tmp_path, monkeypatch):
+    """Two processes on one comparison: while another live process trains
+    the clear row, the test-only row of the same seed is deferred with it
+    (no error about missing weights)."""
+    out = str(tmp_path / 'runs')
+    recipes = [r for r in rc.resolve_recipes('fog_transfer')
+               if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
+    ran = fake_runs(monkeypatch)
+    hold(osp.dirname(rc.result_file(out, recipes[0][0], 0)))
     logs = []
     record = rc.compare(recipes, [0], ce.Budget(iters=2),
                         str(tmp_path), [], out, log=logs.append,
@@ -263,3 +276,123 @@ def test_transfer_root_and_ceiling_errors(tmp_path):
     entry, md = rc.ceiling('fog_transfer', None, ['box AP'])
     assert entry is None and 'not tabulated' in md
     assert rc.ceiling('coco_street', None, ['box AP']) == (None, '')
+
+
+def test_clear_rows_train_as_the_coco_street_rows_checked(tmp_path):
+    recipes = rc.resolve_recipes('fog_transfer')
+    assert rc.trained_as('fog_transfer', recipes) == {
+        'Cascade Mask R-CNN, clear': 'Cascade Mask R-CNN',
+        'CBNet-PT, clear': 'CBNet-PT'}
+    with pytest.raises(ValueError, match='is for fog_transfer'):
+        rc.trained_as('coco_street', recipes)
+    # a config that trains otherwise (the fog augmentation) under the
+    # clear row's name is refused, naming what differs
+    aug = dict(recipes)['Cascade Mask R-CNN, clear + fog aug']
+    with pytest.raises(ValueError, match=r"differ in \['train_dataloader'\]"):
+        rc.trained_as('fog_transfer', [('Cascade Mask R-CNN, clear', aug)])
+
+
+def finished_run(out, name, seed, budget, weights=True, **extra):
+    """A finished run of another set's work dir: its result.json and,
+    with ``weights``, its last checkpoint (a few bytes)."""
+    path = rc.result_file(out, name, seed)
+    os.makedirs(osp.dirname(path), exist_ok=True)
+    with open(path, 'w') as f:
+        json.dump(dict(recipe=name, seed=seed, budget=asdict(budget),
+                       train_time_s=123.4, metrics={}, **extra), f)
+    if weights:
+        with open(rc.checkpoint_file(out, name, seed, budget), 'wb') as f:
+            f.write(b'weights of ' + name.encode())
+    return path
+
+
+def test_find_trained(tmp_path):
+    street, budget = str(tmp_path / 'street'), ce.Budget(iters=2)
+    name = 'Cascade Mask R-CNN'
+    with pytest.raises(FileNotFoundError, match='--weights-from'):
+        rc.find_trained(street, name, 0, budget)
+    path = finished_run(street, name, 0, budget)
+    assert rc.find_trained(street, name, 0, budget) == (path, False)
+    # restored from a record, without its weights: not usable here
+    finished_run(street, name, 1, budget, weights=False)
+    assert rc.find_trained(street, name, 1, budget) == (None, False)
+    # never run / being trained by a live process
+    assert rc.find_trained(street, name, 2, budget) == (None, False)
+    hold(osp.dirname(rc.result_file(street, name, 2)))
+    assert rc.find_trained(street, name, 2, budget) == (None, True)
+    # another budget, other overrides, other data: refused
+    with pytest.raises(ValueError, match='another budget'):
+        rc.find_trained(street, name, 0, ce.Budget(iters=3))
+    with pytest.raises(ValueError, match='--cfg-options'):
+        rc.find_trained(street, name, 0, budget, dict(a=1))
+    with open(osp.join(street, 'compare.json'), 'w') as f:
+        json.dump(dict(data_root=str(tmp_path / 'street_data')), f)
+    assert rc.find_trained(street, name, 0, budget, None,
+                           str(tmp_path / 'street_data'))[0] == path
+    with pytest.raises(ValueError, match='not this data'):
+        rc.find_trained(street, name, 0, budget, None, str(tmp_path))
+
+
+def test_a_run_trained_elsewhere_is_tested_not_trained(
+        tmp_path, monkeypatch):
+    street, out = str(tmp_path / 'street'), str(tmp_path / 'runs')
+    budget = ce.Budget(iters=2)
+    source = finished_run(street, 'Cascade Mask R-CNN', 0, budget,
+                          resumed_at_iter=1, train_time_extrapolated=True)
+    tested = []
+
+    def fake_ap_drop(cfg, checkpoint, work_dir, betas, transfer_root):
+        tested.append(checkpoint)
+        return dict(metrics={'coco street': {'coco/bbox_mAP': 0.5}})
+
+    def no_training(*args, **kwargs):
+        raise AssertionError('nothing may be trained')
+
+    monkeypatch.setattr(rc, 'ap_drop', fake_ap_drop)
+    monkeypatch.setattr(Runner, 'from_cfg', no_training)
+    name, config = rc.resolve_recipes('fog_transfer')[0]
+    result = rc.run_recipe(name, config, 0, budget, str(tmp_path), [], out,
+                           trained_in=source)
+    mine = rc.checkpoint_file(out, name, 0, budget)
+    # the very file the coco_street run saved, tested under this config
+    assert osp.samefile(mine, rc.checkpoint_file(
+        street, 'Cascade Mask R-CNN', 0, budget))
+    assert tested == [mine]
+    assert result['train_time_s'] == 123.4
+    assert result['trained_in'] == osp.dirname(source)
+    assert result['trained_as'] == 'Cascade Mask R-CNN'
+    assert result['resumed_at_iter'] == 1
+    assert result['train_time_extrapolated'] is True
+    with open(rc.result_file(out, name, 0)) as f:
+        assert json.load(f) == result
+
+
+def test_compare_takes_what_the_other_set_trained(tmp_path, monkeypatch):
+    """Seed 0 finished there (tested here, the DCP row then tests the same
+    weights), seed 1 never run there (trained here), seed 2 being trained
+    there by a live process (waited for: left out with wait=False)."""
+    street, out = str(tmp_path / 'street'), str(tmp_path / 'runs')
+    budget = ce.Budget(iters=2)
+    recipes = [r for r in rc.resolve_recipes('fog_transfer')
+               if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
+    source = finished_run(street, 'Cascade Mask R-CNN', 0, budget)
+    hold(osp.dirname(rc.result_file(street, 'Cascade Mask R-CNN', 2)))
+    calls = fake_runs(monkeypatch)
+    logs = []
+    record = rc.compare(recipes, [0, 1, 2], budget, str(tmp_path), [], out,
+                        log=logs.append, set_name='fog_transfer',
+                        wait=False, weights_from=street)
+    clear, dcp = recipes[0][0], recipes[1][0]
+    assert calls == [(clear, 0, source, None), (dcp, 0, None, clear),
+                     (clear, 1, None, None), (dcp, 1, None, clear)]
+    assert record['in_progress'] == [[clear, 2], [dcp, 2]]
+    assert record['weights_from'] == street
+    said = '\n'.join(logs)
+    assert f'testing the weights trained in {osp.dirname(source)}' in said
+    assert "training (no finished run of 'Cascade Mask R-CNN'" in said
+    assert f'another process is training in {street}, later' in said
+    # a set none of whose rows train as another's: --weights-from refused
+    with pytest.raises(ValueError, match='is for fog_transfer'):
+        rc.compare(rc.resolve_recipes('coco_street')[:1], [0], budget,
+                   str(tmp_path), [], str(tmp_path / 'x'),
+                   set_name='coco_street', weights_from=street)

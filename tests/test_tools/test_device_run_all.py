@@ -317,6 +317,23 @@ def test_a_transfer_set_without_its_real_fog_fails_clearly(tmp_path):
     assert not (tmp_path / 'work' / 'harness').exists()
 
 
+def finished_sets(monkeypatch):
+    """Harness sets that finish at once: each command run in parallel is
+    kept (the list returned) and leaves the record of a finished set."""
+    seen = []
+
+    def fake_parallel(r, cmd, n, box, log_name, env):
+        seen.append(cmd)
+        work = cmd[cmd.index('--work-dir') + 1]
+        os.makedirs(work)
+        with open(osp.join(work, 'compare.json'), 'w') as f:
+            json.dump(dict(runs=[{}], missing=[]), f)
+        return dict(rc=0)
+
+    monkeypatch.setattr(ra, 'run_parallel', fake_parallel)
+    return seen
+
+
 def test_a_set_made_on_the_machine_is_made_then_tested_on_the_transfer(
         tmp_path, monkeypatch):
     """fog_generated_to_real: its generated scenes are made on the machine
@@ -328,17 +345,7 @@ def test_a_set_made_on_the_machine_is_made_then_tested_on_the_transfer(
         'open(os.path.join(sys.argv[1], "made"), "w").write(sys.argv[2])',
         '{path}', '{nproc}'])
     monkeypatch.setitem(ra.SETS, 'fog_generated_to_real', spec)
-    seen = []
-
-    def fake_parallel(r, cmd, n, box, log_name, env):
-        seen.append(cmd)  # the set's record, as a finished set leaves it
-        work = cmd[cmd.index('--work-dir') + 1]
-        os.makedirs(work)
-        with open(osp.join(work, 'compare.json'), 'w') as f:
-            json.dump(dict(runs=[{}], missing=[]), f)
-        return dict(rc=0)
-
-    monkeypatch.setattr(ra, 'run_parallel', fake_parallel)
+    seen = finished_sets(monkeypatch)
     monkeypatch.setattr(ra.Runner, 'run', lambda self, cmd, *a, **k: dict(
         rc=subprocess.run(cmd).returncode))
     r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
@@ -353,6 +360,29 @@ def test_a_set_made_on_the_machine_is_made_then_tested_on_the_transfer(
     assert cmd[cmd.index('--data-root') + 1] == str(made)
     assert cmd[cmd.index('--transfer-root') + 1] == str(
         tmp_path / 'data' / 'dawn_fog_val')
+
+
+def test_fog_transfer_takes_the_weights_coco_street_trained_before_it(
+        tmp_path, monkeypatch):
+    """With coco_street first in the same call, fog_transfer gets its work
+    dir as --weights-from; run alone, it trains its clear rows itself."""
+    for folder in ('coco_street', 'dawn_fog_val'):
+        (tmp_path / 'data' / folder).mkdir(parents=True)
+    seen = finished_sets(monkeypatch)
+    monkeypatch.setattr(ra, 'count_runs', lambda *a: 1)
+    r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
+               'coco_street', 'fog_transfer')
+    rec = ra.step_harness(r, dict(os.environ))
+    assert [s['status'] for s in rec['sets']] == ['ok', 'ok']
+    street, transfer = seen
+    assert '--weights-from' not in street
+    assert transfer[transfer.index('--weights-from') + 1] == \
+        street[street.index('--work-dir') + 1]
+    seen.clear()
+    r = runner(tmp_path / 'alone', '--data', str(tmp_path / 'data'),
+               '--sets', 'fog_transfer')
+    ra.step_harness(r, dict(os.environ))
+    assert '--weights-from' not in seen[0]
 
 
 def test_a_set_whose_data_cannot_be_made_fails_clearly(tmp_path,

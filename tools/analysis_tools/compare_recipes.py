@@ -69,7 +69,10 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
             the clear-only checkpoint at test time (trains nothing); each
             tested on COCO street val and on DAWN's fog + haze val
             (--transfer-root), box AP / AP50 and the drop; --ceiling adds
-            the realfog_pretrained record (trained on DAWN) as the ceiling
+            the realfog_pretrained record (trained on DAWN) as the ceiling;
+            the clear-only rows train exactly as the coco_street set's
+            two rows: --weights-from that set's work dir tests its
+            finished runs instead of training them again
   fog_generated_to_real  the same two models trained on the generated
             scenes (bench preset), clear or with their depth-rendered fog
             (beta 0.02), tested on generated clear / foggy val and on
@@ -126,7 +129,8 @@ Examples::
     OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
         --set fog_transfer --data-root data/coco_street \
         --transfer-root data/dawn_fog --threads 1 \
-        --ceiling work_dirs/compare/realfog_pretrained/compare.json
+        --ceiling work_dirs/compare/realfog_pretrained/compare.json \
+        --weights-from work_dirs/compare/coco_street
     # generated -> real: the bench data once, then the set
     python tools/misc/generate_cityscapes_like.py \
         data/cityscapes_like_bench --preset bench --nproc 2 --convert
@@ -175,6 +179,12 @@ def parse_args(argv=None):
                         help="the in-domain ceiling's record, tabulated "
                         'under the results, never retrained (fog_transfer: '
                         "the realfog_pretrained set's compare.json)")
+    parser.add_argument('--weights-from', metavar='WORK_DIR',
+                        help='the work dir of the set whose rows some of '
+                        "this set's rows train exactly as (fog_transfer: "
+                        "the coco_street set's, for the clear-only rows): "
+                        'its finished runs (same budget and data) are '
+                        'tested here, not trained again')
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--iters', type=int,
                         help='training iterations per run (0: untrained)')
@@ -271,7 +281,8 @@ def main(argv=None) -> dict:
                         set_name=args.set, train=not args.report_only,
                         wait=not args.no_wait,
                         transfer_root=args.transfer_root,
-                        ceiling_record=args.ceiling)
+                        ceiling_record=args.ceiling,
+                        weights_from=args.weights_from)
     if 'summary' in record:  # else nothing had finished (--no-wait)
         print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
               'compare.png')

@@ -171,8 +171,13 @@ SETS = {
     # copies those and every XML (the seeded split reads the XMLs' names:
     # :data:`VAL_ONLY`), which keeps the call under 64 MiB. Its ceiling
     # is the realfog_pretrained record (compare_recipes.py --ceiling).
+    # Its clear-only rows train as the coco_street set's rows: when that
+    # set ran earlier in the same call (``--sets coco_street
+    # fog_transfer``), its work dir is passed as --weights-from and those
+    # runs are tested, not trained again.
     'fog_transfer': dict(
         data='coco_street', transfer='dawn_fog_val',
+        weights_from='coco_street',
         args=['--seeds', '0', '1', '2'],
         needs=[],
         # one row at 256x128, tested on the tiny fog folder too
@@ -777,6 +782,10 @@ def step_harness(r: Runner, env) -> dict:
                '--threads', '1'] + set_args
         if transfer is not None:
             cmd += ['--transfer-root', transfer]
+        trained = osp.join(r.work, 'harness', spec.get('weights_from', ''))
+        if spec.get('weights_from') in r.args.sets[:i] and \
+                osp.isdir(trained):
+            cmd += ['--weights-from', trained]
         n = min(count_runs(r.args, env, name, set_args), r.args.max_procs)
         rec.update(processes=n, command=' '.join(map(shlex.quote, cmd)))
         r.log(f'harness {name}: {n} processes, box {share:.0f} s')
