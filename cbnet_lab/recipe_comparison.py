@@ -696,31 +696,18 @@ def trained_as(set_name: Optional[str],
     return found
 
 
-def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
-                 cfg_options: Optional[dict] = None,
-                 data_root: Optional[str] = None
-                 ) -> Tuple[Optional[str], bool]:
-    """A run of recipe ``name`` and ``seed`` in another set's work dir.
+def check_weights_from(weights_from: str,
+                       data_root: Optional[str] = None) -> None:
+    """Check, once, the other set's work dir that ``find_trained`` reads.
 
     Args:
         weights_from (str): The other comparison's work dir.
-        name (str): The recipe's name there.
-        seed (int): The seed.
-        budget (Budget): This comparison's budget; the run's must match.
-        cfg_options (dict, optional): This comparison's overrides; the
-            run's must match.
         data_root (str, optional): This comparison's data; where the other
             work dir has a ``compare.json``, its data root must match.
 
-    Returns:
-        tuple: (the run's ``result.json`` when it is finished with its
-        weights on disk, else None; whether another live process is
-        training it now).
-
     Raises:
         FileNotFoundError: ``weights_from`` is not a folder.
-        ValueError: The run there was trained under another budget,
-            overrides or data.
+        ValueError: It was trained on other data.
     """
     if not osp.isdir(weights_from):
         raise FileNotFoundError(
@@ -735,6 +722,31 @@ def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
             raise ValueError(
                 f'{weights_from} was trained on {theirs}, this comparison '
                 f'runs on {data_root}: its weights are not this data\'s')
+
+
+def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
+                 cfg_options: Optional[dict] = None
+                 ) -> Tuple[Optional[str], bool]:
+    """A run of recipe ``name`` and ``seed`` in another set's work dir
+    (checked by :func:`check_weights_from`); reads only.
+
+    Args:
+        weights_from (str): The other comparison's work dir.
+        name (str): The recipe's name there.
+        seed (int): The seed.
+        budget (Budget): This comparison's budget; the run's must match.
+        cfg_options (dict, optional): This comparison's overrides; the
+            run's must match.
+
+    Returns:
+        tuple: (the run's ``result.json`` when it is finished with its
+        weights on disk, else None; whether another live process is
+        training it now).
+
+    Raises:
+        ValueError: The run there was trained under another budget or
+            overrides.
+    """
     path = result_file(weights_from, name, seed)
     if not osp.isfile(path):
         return None, held_elsewhere(weights_from, name, seed)
@@ -948,11 +960,11 @@ class RunLock:
     and taken over, so a killed comparison resumes.
 
     Args:
-        run_dir (str): The run's folder (created if missing).
+        run_dir (str): The run's folder (``acquire`` creates it if missing;
+            reading the lock writes nothing).
     """
 
     def __init__(self, run_dir: str):
-        os.makedirs(run_dir, exist_ok=True)
         self.path = osp.join(run_dir, '.lock')
         self.held = False
 
@@ -989,6 +1001,7 @@ class RunLock:
 
     def acquire(self) -> bool:
         """Take the lock; False if a live process holds it."""
+        os.makedirs(osp.dirname(self.path), exist_ok=True)
         for _ in range(2):
             try:
                 fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
@@ -1327,12 +1340,14 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     # a tabulation (train=False) reads the runs here only
     trained_elsewhere = trained_as(set_name, recipes) \
         if weights_from and train else {}
+    if trained_elsewhere:
+        check_weights_from(weights_from, data_root)
 
     def trained_there(name: str, seed: int) -> Tuple[Optional[str], bool]:
         if name not in trained_elsewhere:
             return None, False
         return find_trained(weights_from, trained_elsewhere[name], seed,
-                            budget, cfg_options, data_root)
+                            budget, cfg_options)
 
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)

@@ -310,14 +310,17 @@ def test_find_trained(tmp_path):
     street, budget = str(tmp_path / 'street'), ce.Budget(iters=2)
     name = 'Cascade Mask R-CNN'
     with pytest.raises(FileNotFoundError, match='--weights-from'):
-        rc.find_trained(street, name, 0, budget)
+        rc.check_weights_from(street)
     path = finished_run(street, name, 0, budget)
+    rc.check_weights_from(street)
     assert rc.find_trained(street, name, 0, budget) == (path, False)
     # restored from a record, without its weights: not usable here
     finished_run(street, name, 1, budget, weights=False)
     assert rc.find_trained(street, name, 1, budget) == (None, False)
-    # never run / being trained by a live process
+    # never run (and the other set's folder left as it was) / being
+    # trained by a live process
     assert rc.find_trained(street, name, 2, budget) == (None, False)
+    assert not osp.exists(osp.dirname(rc.result_file(street, name, 2)))
     hold(osp.dirname(rc.result_file(street, name, 2)))
     assert rc.find_trained(street, name, 2, budget) == (None, True)
     # another budget, other overrides, other data: refused
@@ -327,10 +330,9 @@ def test_find_trained(tmp_path):
         rc.find_trained(street, name, 0, budget, dict(a=1))
     with open(osp.join(street, 'compare.json'), 'w') as f:
         json.dump(dict(data_root=str(tmp_path / 'street_data')), f)
-    assert rc.find_trained(street, name, 0, budget, None,
-                           str(tmp_path / 'street_data'))[0] == path
+    rc.check_weights_from(street, str(tmp_path / 'street_data'))
     with pytest.raises(ValueError, match='not this data'):
-        rc.find_trained(street, name, 0, budget, None, str(tmp_path))
+        rc.check_weights_from(street, str(tmp_path))
 
 
 def test_a_run_trained_elsewhere_is_tested_not_trained(

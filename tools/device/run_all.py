@@ -782,10 +782,11 @@ def step_harness(r: Runner, env) -> dict:
                '--threads', '1'] + set_args
         if transfer is not None:
             cmd += ['--transfer-root', transfer]
-        trained = osp.join(r.work, 'harness', spec.get('weights_from', ''))
-        if spec.get('weights_from') in r.args.sets[:i] and \
-                osp.isdir(trained):
-            cmd += ['--weights-from', trained]
+        source = spec.get('weights_from')
+        if source in r.args.sets[:i]:  # ran earlier in this call
+            trained = osp.join(r.work, 'harness', source)
+            if osp.isdir(trained):
+                cmd += ['--weights-from', trained]
         n = min(count_runs(r.args, env, name, set_args), r.args.max_procs)
         rec.update(processes=n, command=' '.join(map(shlex.quote, cmd)))
         r.log(f'harness {name}: {n} processes, box {share:.0f} s')
