@@ -6,6 +6,8 @@ Each edit walks the whole config (wrapped or paired datasets, evaluator
 lists), so a recipe's structure does not matter, and fails loudly when it
 would silently not apply.
 """
+import copy
+import os
 import os.path as osp
 import re
 from dataclasses import dataclass
@@ -27,6 +29,34 @@ def configs_root() -> str:
     raise FileNotFoundError(
         'cbnet_mmdet: no configs folder next to the package or in its '
         '.mim folder')
+
+
+_READ_CONFIGS = {}
+
+
+def read_config(path: str) -> Config:
+    """``Config.fromfile(path)``, parsed once per process; a deep copy each
+    call, so editing it changes nothing for the next caller.
+
+    A comparison reads each recipe's config several times (its test
+    condition, transfer set, trunk weights, the run's own config), and
+    every ``mmdet::`` base in it makes MMEngine read all of MMDet's
+    metafiles again (about a second each on the project's CPU). The parse
+    is keyed by the file's real path, size and modification time, and by
+    the environment (a config may read it: ``{{$CBNET_PRETRAINED_DIR:...}}``
+    in the pretrained recipes), so a config rewritten in place or under
+    another environment is read again; its ``_base_`` files are assumed
+    unchanged while the process runs.
+    """
+    real = osp.realpath(path)
+    if not osp.isfile(real):
+        raise FileNotFoundError(f'config file not found: {path}')
+    stat = os.stat(real)
+    key = (real, stat.st_size, stat.st_mtime_ns,
+           tuple(sorted(os.environ.items())))
+    if key not in _READ_CONFIGS:
+        _READ_CONFIGS[key] = Config.fromfile(path)
+    return copy.deepcopy(_READ_CONFIGS[key])
 
 
 @dataclass
@@ -161,7 +191,7 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     Returns:
         Config: The run's config.
     """
-    cfg = Config.fromfile(config)
+    cfg = read_config(config)
     replace_data_root(cfg, data_root)
     iters = max(budget.iters, 1)
     cfg.train_dataloader.batch_size = budget.batch_size

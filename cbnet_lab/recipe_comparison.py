@@ -59,7 +59,6 @@ from dataclasses import asdict, dataclass
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
-from mmengine.config import Config
 from mmengine.device import get_device
 
 from cbnet_tools.markdown import markdown_table
@@ -67,7 +66,7 @@ from cbnet_tools.pretrained import require_pretrained
 
 from .ap_drop import ap_drop, test_condition, transfer_test
 from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
-                           resume_file)
+                           read_config, resume_file)
 from .report import machine_line, plot, to_markdown
 from .metric_keys import columns as metric_columns
 
@@ -630,7 +629,7 @@ def weights_sources(
     """
     sources, seen = {}, {}
     for name, config in recipes:
-        target = Config.fromfile(config).get('compare_weights_of')
+        target = read_config(config).get('compare_weights_of')
         if target is None:
             sources[name] = None
         else:
@@ -675,7 +674,7 @@ def trained_as(set_name: Optional[str],
             ')')
 
     def training_keys(config: str) -> dict:
-        return {k: v for k, v in Config.fromfile(config).to_dict().items()
+        return {k: v for k, v in read_config(config).to_dict().items()
                 if not k.startswith(('transfer_', 'compare_'))}
 
     theirs = dict(resolve_recipes(spec['set']))
@@ -1037,7 +1036,7 @@ def reference_condition(recipes: Sequence[Tuple[str, str]]) -> str:
     Raises:
         ValueError: The recipes name different conditions.
     """
-    names = {name: test_condition(Config.fromfile(config)) or 'clear'
+    names = {name: test_condition(read_config(config)) or 'clear'
              for name, config in recipes}
     if len(set(names.values())) > 1:
         raise ValueError(
@@ -1176,7 +1175,7 @@ def check_transfer(recipes: Sequence[Tuple[str, str]],
     """The real-fog folder of the recipes' ``transfer_test`` exists, before
     any training (each config's own ``data_root`` when ``transfer_root``
     is None); ``transfer_root`` without such a recipe is an error."""
-    specs = {name: transfer_test(Config.fromfile(config))
+    specs = {name: transfer_test(read_config(config))
              for name, config in recipes}
     if transfer_root is not None and not any(specs.values()):
         raise ValueError(
@@ -1273,7 +1272,7 @@ def check_pretrained(recipes: Sequence[Tuple[str, str]],
     .require_pretrained`). Test-time variants load no trunk."""
     for name, config in recipes:
         if sources[name] is None:
-            require_pretrained(Config.fromfile(config))
+            require_pretrained(read_config(config))
 
 
 def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],

@@ -163,3 +163,49 @@ def test_a_config_with_fixed_img_scale_keeps_it(tmp_path):
     plain = ce.budget_cfg(recipe, budget, seed=0, data_root='/d',
                           work_dir=str(tmp_path))
     assert set(resizes(plain)) == {(512, 256)}
+
+
+def test_read_config_parses_once_and_hands_out_copies(tmp_path,
+                                                      monkeypatch):
+    """The lab reads each recipe's config several times: parsed once per
+    process (a ``mmdet::`` base costs MMEngine a read of every MMDet
+    metafile), a fresh copy each call, read again when the file changes."""
+    from mmengine.config import Config
+    calls = []
+
+    class Spy:
+        @staticmethod
+        def fromfile(path):
+            calls.append(path)
+            return Config.fromfile(path)
+
+    monkeypatch.setattr(ce, 'Config', Spy)
+    monkeypatch.setattr(ce, '_READ_CONFIGS', {})
+    path = tmp_path / 'recipe.py'
+    path.write_text("_base_ = 'mmdet::_base_/default_runtime.py'\n"
+                    "data_root = 'data/a/'\nnums = [1, 2]\n")
+    first = ce.read_config(str(path))
+    assert first.data_root == 'data/a/' and first.default_scope == 'mmdet'
+    first.nums.append(3)
+    first.data_root = 'elsewhere/'
+    second = ce.read_config(str(path))
+    assert len(calls) == 1
+    assert second.nums == [1, 2] and second.data_root == 'data/a/'
+    assert second.to_dict() == Config.fromfile(str(path)).to_dict()
+    # rewritten in place (another size): read again
+    path.write_text("_base_ = 'mmdet::_base_/default_runtime.py'\n"
+                    "data_root = 'data/bb/'\n")
+    assert ce.read_config(str(path)).data_root == 'data/bb/'
+    assert len(calls) == 2
+    # a config that reads the environment (as the pretrained recipes read
+    # CBNET_PRETRAINED_DIR) is read again when the environment changes
+    path = tmp_path / 'env.py'
+    path.write_text("trunk = '{{$CBNET_TEST_TRUNK_DIR:~/cache}}/t.pth'\n")
+    monkeypatch.delenv('CBNET_TEST_TRUNK_DIR', raising=False)
+    assert ce.read_config(str(path)).trunk == '~/cache/t.pth'
+    monkeypatch.setenv('CBNET_TEST_TRUNK_DIR', '/elsewhere')
+    assert ce.read_config(str(path)).trunk == '/elsewhere/t.pth'
+    assert ce.read_config(str(path)).trunk == '/elsewhere/t.pth'
+    assert len(calls) == 4
+    with pytest.raises(FileNotFoundError, match='no_such.py'):
+        ce.read_config(str(tmp_path / 'no_such.py'))

@@ -141,7 +141,7 @@ Examples::
 import argparse
 import sys
 
-from mmengine.config import Config, DictAction
+from mmengine.config import DictAction
 
 
 def parse_args(argv=None):
@@ -243,12 +243,13 @@ def data_and_betas(args, recipes) -> tuple:
     recipes (configs with ``test_condition``) test their config's data and
     no betas; the others the preset's data root and three betas."""
     from cbnet_lab import recipe_comparison as rc
+    from cbnet_lab.config_edits import read_config
     real = rc.reference_condition(recipes) != 'clear'
     betas, data_root = args.betas, args.data_root
     if betas is None:
         betas = [] if real else [0.005, 0.01, 0.02]
     if data_root is None:
-        data_root = Config.fromfile(recipes[0][1]).data_root if real \
+        data_root = read_config(recipes[0][1]).data_root if real \
             else rc.PRESETS[args.preset].data_root
     return data_root, betas
 
