@@ -47,6 +47,14 @@ def read_config(path: str) -> Config:
     in the pretrained recipes), so a config rewritten in place or under
     another environment is read again; its ``_base_`` files are assumed
     unchanged while the process runs.
+
+    The copy's text is not run through yapf: MMEngine formats a config's
+    ``pretty_text`` with it each time a runner logs, dumps or checkpoints
+    the config (4-6 times per lab run, about a second each for a cascade
+    recipe on the project's CPU, half of a short test run). The text is
+    the same Python, only its line breaks differ. ``Config.fromfile`` of
+    MMEngine 0.10.7 drops its own ``format_python_code`` argument for a
+    plain config, hence the explicit ``Config(...)`` here.
     """
     real = osp.realpath(path)
     if not osp.isfile(real):
@@ -55,7 +63,10 @@ def read_config(path: str) -> Config:
     key = (real, stat.st_size, stat.st_mtime_ns,
            tuple(sorted(os.environ.items())))
     if key not in _READ_CONFIGS:
-        _READ_CONFIGS[key] = Config.fromfile(path)
+        cfg = Config.fromfile(path)
+        _READ_CONFIGS[key] = Config(
+            cfg.to_dict(), cfg_text=cfg.text, filename=cfg.filename,
+            env_variables=cfg.env_variables, format_python_code=False)
     return copy.deepcopy(_READ_CONFIGS[key])
 
 

@@ -173,7 +173,7 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
     from mmengine.config import Config
     calls = []
 
-    class Spy:
+    class Spy(Config):
         @staticmethod
         def fromfile(path):
             calls.append(path)
@@ -191,7 +191,14 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
     second = ce.read_config(str(path))
     assert len(calls) == 1
     assert second.nums == [1, 2] and second.data_root == 'data/a/'
-    assert second.to_dict() == Config.fromfile(str(path)).to_dict()
+    parsed = Config.fromfile(str(path))
+    assert second.to_dict() == parsed.to_dict()
+    # the same file, text and Python, without yapf's line breaks
+    assert (second.filename, second.text, second.env_variables) == \
+        (parsed.filename, parsed.text, parsed.env_variables)
+    assert Config.fromstring(second.pretty_text, '.py').to_dict() == \
+        second.to_dict()
+    assert not second._format_python_code
     # rewritten in place (another size): read again
     path.write_text("_base_ = 'mmdet::_base_/default_runtime.py'\n"
                     "data_root = 'data/bb/'\n")
