@@ -32,6 +32,8 @@ def configs_root() -> str:
 
 
 _READ_CONFIGS = {}
+#: a ``{{$VAR:default}}`` of MMEngine's configs (its own pattern's start)
+_ENV_REFERENCE = re.compile(r'''\{\{['\"]?\s*\$(\w+)\s*:''')
 
 
 def read_config(path: str) -> Config:
@@ -42,11 +44,14 @@ def read_config(path: str) -> Config:
     condition, transfer set, trunk weights, the run's own config), and
     every ``mmdet::`` base in it makes MMEngine read all of MMDet's
     metafiles again (about a second each on the project's CPU). The parse
-    is keyed by the file's real path, size and modification time, and by
-    the environment (a config may read it: ``{{$CBNET_PRETRAINED_DIR:...}}``
-    in the pretrained recipes), so a config rewritten in place or under
-    another environment is read again; its ``_base_`` files are assumed
-    unchanged while the process runs.
+    is keyed by the file's real path, size and modification time, so a
+    config rewritten in place is read again (its ``_base_`` files are
+    assumed unchanged while the process runs), and it is checked against
+    the environment variables that the config and its bases name in
+    MMEngine's ``{{$VAR:default}}`` form (the pretrained recipes read
+    ``CBNET_PRETRAINED_DIR``): one of those set, changed or unset since
+    the parse reads the file again; any other variable changes nothing (a
+    test runner sets one per test).
 
     The copy's text is not run through yapf: MMEngine formats a config's
     ``pretty_text`` with it each time a runner logs, dumps or checkpoints
@@ -60,14 +65,19 @@ def read_config(path: str) -> Config:
     if not osp.isfile(real):
         raise FileNotFoundError(f'config file not found: {path}')
     stat = os.stat(real)
-    key = (real, stat.st_size, stat.st_mtime_ns,
-           tuple(sorted(os.environ.items())))
-    if key not in _READ_CONFIGS:
+    key = (real, stat.st_size, stat.st_mtime_ns)
+    cached = _READ_CONFIGS.get(key)
+    if cached is None or any(os.environ.get(name) != value
+                             for name, value in cached[1].items()):
         cfg = Config.fromfile(path)
-        _READ_CONFIGS[key] = Config(
-            cfg.to_dict(), cfg_text=cfg.text, filename=cfg.filename,
-            env_variables=cfg.env_variables, format_python_code=False)
-    return copy.deepcopy(_READ_CONFIGS[key])
+        cfg = Config(cfg.to_dict(), cfg_text=cfg.text, filename=cfg.filename,
+                     env_variables=cfg.env_variables,
+                     format_python_code=False)
+        # cfg.text is the file's text after its bases' texts, as written
+        read = {name: os.environ.get(name)
+                for name in set(_ENV_REFERENCE.findall(cfg.text))}
+        cached = _READ_CONFIGS[key] = (cfg, read)
+    return copy.deepcopy(cached[0])
 
 
 @dataclass

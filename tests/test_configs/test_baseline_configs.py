@@ -12,12 +12,12 @@ import os.path as osp
 
 import pytest
 import torch
-from mmengine.config import Config
 
 from cbnet_lab.benchmark import (build_detector, has_mask_head,
                                  head_num_classes,
                                  load_benchmark_cfg, make_batch,
                                  preprocess, train_step)
+from cbnet_lab.config_edits import read_config
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 CONFIGS = sorted(glob.glob(osp.join(ROOT, 'configs', 'baselines', '*.py')))
@@ -52,7 +52,7 @@ def test_all_baselines_present():
 
 @pytest.mark.parametrize('path', CONFIGS, ids=NAMES)
 def test_baseline_config_data_and_evaluation(path):
-    cfg = Config.fromfile(path)
+    cfg = read_config(path)
     name = osp.basename(path)[:-3]
     assert cfg.custom_imports == dict(
         imports=['cbnet_mmdet'], allow_failed_imports=False)
@@ -92,7 +92,7 @@ def test_baseline_data_pipelines_on_tiny_dataset(cityscapes_like_root):
     import cbnet_mmdet  # noqa: F401
     register_all_modules()
     for path in CONFIGS:
-        cfg = Config.fromfile(path)
+        cfg = read_config(path)
         for split, loader in (('train', cfg.train_dataloader),
                               ('val', cfg.val_dataloader)):
             ds_cfg = loader.dataset

@@ -6,9 +6,9 @@ import pytest
 import torch
 from mmdet.registry import MODELS
 from mmdet.testing import demo_mm_inputs
-from mmengine.config import Config
 from mmengine.registry import init_default_scope
 
+from cbnet_lab.config_edits import read_config
 import cbnet_mmdet  # noqa: F401
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -56,7 +56,7 @@ def test_configs_found():
 @pytest.mark.slow  # big backbones (B3-B5, 7 NAS-FPN stacks): 5-15 s each
 @pytest.mark.parametrize('path', CONFIGS, ids=_rel)
 def test_config_trains_one_step_and_predicts(path):
-    cfg = Config.fromfile(path)
+    cfg = read_config(path)
     init_default_scope(cfg.get('default_scope', 'mmdet'))
     model = MODELS.build(_for_cpu_test(cfg.model))
     channels = 6 if cfg.model.type == 'CBNetDistiller' else 3
@@ -82,7 +82,7 @@ def test_config_trains_one_step_and_predicts(path):
 
 
 def test_headline_config_is_the_papers_recipe():
-    cfg = Config.fromfile(HEADLINE)
+    cfg = read_config(HEADLINE)
     m = cfg.model
     assert m.backbone.type == 'CBNetMiT' and m.backbone.arch == 'b5'
     assert m.backbone.act_cfg.type == 'CBNetMish'
@@ -134,7 +134,7 @@ def test_no_weight_decay_on_norms_and_cspe_tables():
     """SegFormer's recipe: AdamW decays weights, not norms or the CSPE
     position tables (the paramwise keys must match real parameter names)."""
     from mmengine.optim import build_optim_wrapper
-    cfg = Config.fromfile(
+    cfg = read_config(
         osp.join(ROOT, 'configs', 'cbnet',
                  'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes.py'))
     init_default_scope('mmdet')
@@ -160,7 +160,7 @@ ABLATION_ROWS = ('ce', 'shape', 'shape-edge', 'shape-edge-kd')
 
 
 def ablation_cfg(row):
-    return Config.fromfile(
+    return read_config(
         osp.join(ABLATION, f'cbnet_mit-b5_ablation-{row}_foggy-cityscapes.py'))
 
 
@@ -214,7 +214,7 @@ def test_paper_configs_give_from_scratch_parts_10x_lr():
                       'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes.py'), 10),
             (osp.join(ROOT, 'configs', 'demo',
                       'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'), 1)):
-        cfg = Config.fromfile(path)
+        cfg = read_config(path)
         model = MODELS.build(_for_cpu_test(cfg.model))
         wrapper = build_optim_wrapper(model, cfg.optim_wrapper)
         base = cfg.optim_wrapper.optimizer.lr
@@ -232,7 +232,7 @@ def test_paper_configs_sync_bn_in_the_neck():
     for name in ('cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py',
                  'cbnet_mit-b0_nasfpn-crpn_8xb1-12e_cityscapes.py',
                  'cbnet_mit-b5_nasfpn-crpn_8xb1-12e_foggy-cityscapes.py'):
-        cfg = Config.fromfile(osp.join(ROOT, 'configs', 'cbnet', name))
+        cfg = read_config(osp.join(ROOT, 'configs', 'cbnet', name))
         assert cfg.model.neck.norm_cfg.type == 'SyncBN', name
 
 
@@ -255,7 +255,7 @@ def test_logged_mask_loss_is_the_configured_weight(path):
     from unittest import mock
 
     from mmdet.testing import demo_mm_proposals
-    cfg = Config.fromfile(path)
+    cfg = read_config(path)
     detector = cfg.model.get('detector', cfg.model)
     assert detector.roi_head.type == 'CBNetCascadeRoIHead'
     init_default_scope('mmdet')

@@ -9,11 +9,11 @@ import os.path as osp
 import pytest
 import torch
 from mmdet.registry import MODELS
-from mmengine.config import Config
 from mmengine.registry import init_default_scope
 
 from cbnet_lab import ap_drop as ad
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab.config_edits import read_config
 from cbnet_tools import pretrained as pt
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -31,7 +31,7 @@ FAMILIES = {'Cascade Mask R-CNN': STREET['Cascade Mask R-CNN'],
 
 
 def load(path):
-    return Config.fromfile(path)
+    return read_config(path)
 
 
 @pytest.fixture(autouse=True)

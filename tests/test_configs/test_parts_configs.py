@@ -5,7 +5,6 @@ difference between the two."""
 import os.path as osp
 
 import pytest
-from mmengine.config import Config
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
@@ -80,7 +79,7 @@ def flat(node, prefix=''):
 
 
 def model_of(path):
-    model = Config.fromfile(path).model.to_dict()
+    model = ce.read_config(path).model.to_dict()
     # the registry scope that an mmdet:: base adds, not a part of the model
     model.pop('_scope_', None)
     return flat(model)

@@ -10,9 +10,9 @@ import os.path as osp
 import pytest
 import torch
 from mmdet.registry import MODELS
-from mmengine.config import Config
 from mmengine.registry import init_default_scope
 
+from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_tools import pretrained as pt
 
@@ -48,7 +48,7 @@ def test_every_config_is_in_a_set():
 
 @pytest.mark.parametrize('path', SHIPPED, ids=osp.basename)
 def test_builds_and_runs_without_the_weights_file(path):
-    cfg = Config.fromfile(path)
+    cfg = ce.read_config(path)
     assert not osp.exists(pt.pretrained_dir())
     init_default_scope('mmdet')
     model = MODELS.build(cfg.model)  # no file read at build time
@@ -77,7 +77,7 @@ def _trunk_and_widths(cfg):
 
 @pytest.mark.parametrize('recipes', [STREET, FOG], ids=['street', 'fog'])
 def test_equal_trunk_widths_optimiser_and_data(recipes):
-    cfgs = {n: Config.fromfile(p) for n, p in recipes.items()}
+    cfgs = {n: ce.read_config(p) for n, p in recipes.items()}
     # two-stage recipes (YOLOX and the edge model have no RoI head; the
     # edge model's trunk and data are checked in test_edge_model_*)
     detectors = {n: c for n, c in cfgs.items() if 'roi_head' in c.model}
@@ -99,7 +99,7 @@ def test_equal_trunk_widths_optimiser_and_data(recipes):
 
 
 def test_the_heads_of_each_recipe():
-    street = {n: Config.fromfile(p).model for n, p in STREET.items()}
+    street = {n: ce.read_config(p).model for n, p in STREET.items()}
     stock, paper = street['Cascade Mask R-CNN'], street['CBNet']
     revised, rpn = street['CBNet revised'], street['CBNet revised, RPNHead']
     cbnet_pt = street['CBNet-PT']
@@ -132,7 +132,7 @@ def test_the_heads_of_each_recipe():
     for key in ('rpn_head', 'roi_head', 'train_cfg', 'test_cfg', 'backbone'):
         assert cbnet_pt[key] == revised[key], key
     # the fog versions are the same heads without masks
-    fog = {n: Config.fromfile(p) for n, p in FOG.items()}
+    fog = {n: ce.read_config(p) for n, p in FOG.items()}
     pairs = [('Cascade R-CNN', 'Cascade Mask R-CNN'),
              ('CBNet', 'CBNet'), ('CBNet revised', 'CBNet revised'),
              ('CBNet revised, RPNHead', 'CBNet revised, RPNHead'),
@@ -151,14 +151,14 @@ def test_the_heads_of_each_recipe():
 
 
 def test_data_of_the_two_sets():
-    street = Config.fromfile(STREET['CBNet'])
+    street = ce.read_config(STREET['CBNet'])
     assert street.test_condition == 'coco street'
     assert street.train_dataloader.dataset.type == 'CBNetCityscapesDataset'
     assert street.train_dataloader.dataset.pipeline[0].type == \
         'CBNetLoadImageFromFile'
     assert [e.type for e in street.test_evaluator] == [
         'CocoMetric', 'CBNetInstanceMIoUMetric']
-    fog = Config.fromfile(FOG['CBNet'])
+    fog = ce.read_config(FOG['CBNet'])
     assert fog.test_condition == 'real fog'
     ds = fog.test_dataloader.dataset
     assert (ds.type, ds.split, ds.val_fraction, ds.split_seed) == (
@@ -190,8 +190,8 @@ def fake_trunk(tmp_path, monkeypatch):
 def test_edge_model_loads_the_trunk_and_fine_tunes_it_as_the_others(
         fake_trunk):
     from mmengine.optim import build_optim_wrapper
-    cfg = Config.fromfile(EDGE)
-    stock = Config.fromfile(FOG['Cascade R-CNN'])
+    cfg = ce.read_config(EDGE)
+    stock = ce.read_config(FOG['Cascade R-CNN'])
     # the same trunk, fine-tuning and data preprocessor as the recipes
     assert cfg.model.backbone == stock.model.backbone
     assert cfg.model.data_preprocessor == stock.model.data_preprocessor
@@ -225,7 +225,7 @@ def test_edge_model_loads_the_trunk_and_fine_tunes_it_as_the_others(
 
 def test_edge_model_trains_and_predicts_on_a_tiny_batch():
     from mmdet.testing import demo_mm_inputs
-    cfg = Config.fromfile(EDGE)
+    cfg = ce.read_config(EDGE)
     init_default_scope('mmdet')
     torch.manual_seed(0)
     model = MODELS.build(cfg.model)
@@ -252,7 +252,6 @@ def test_edge_model_trains_and_predicts_on_a_tiny_batch():
 
 
 def test_edge_model_keeps_its_input_size_under_the_preset(tmp_path):
-    from cbnet_lab import config_edits as ce
     preset = rc.PRESETS['realfog_pretrained']
     budget = ce.Budget(iters=2, batch_size=2, num_workers=0,
                        img_scale=preset.img_scale)
@@ -267,7 +266,7 @@ def test_edge_model_keeps_its_input_size_under_the_preset(tmp_path):
     assert sizes == {osp.basename(EDGE): {(320, 240)},
                      osp.basename(EDGE_640): {(640, 480)}}
     # apart from the size, the data are the other recipes'
-    edge, other = Config.fromfile(EDGE), Config.fromfile(EDGE_640)
+    edge, other = ce.read_config(EDGE), ce.read_config(EDGE_640)
     for key in ('train_dataloader', 'test_dataloader'):
         pipe = [dict(t, scale=(640, 480)) if t.type == 'Resize' else t
                 for t in edge[key].dataset.pipeline]

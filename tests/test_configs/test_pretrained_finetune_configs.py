@@ -7,7 +7,6 @@ parameters the neck's lr."""
 import os.path as osp
 
 import pytest
-from mmengine.config import Config
 from mmengine.optim import build_optim_wrapper
 from mmengine.registry import init_default_scope
 
@@ -44,8 +43,8 @@ def flat(d, prefix=''):
 
 @pytest.mark.parametrize('config,recipe', PAIRS, ids=[p[0] for p in PAIRS])
 def test_only_the_trunk_lr_changes(config, recipe):
-    row = flat(Config.fromfile(osp.join(PRETRAINED, config)).to_dict())
-    ref = flat(Config.fromfile(osp.join(PRETRAINED, recipe)).to_dict())
+    row = flat(ce.read_config(osp.join(PRETRAINED, config)).to_dict())
+    ref = flat(ce.read_config(osp.join(PRETRAINED, recipe)).to_dict())
     changed = {k for k in set(row) | set(ref)
                if row.get(k, '<absent>') != ref.get(k, '<absent>')}
     key = 'optim_wrapper.paramwise_cfg.custom_keys.backbone.lr_mult'
@@ -60,7 +59,7 @@ def test_the_built_optimiser_gives_the_trunk_the_full_lr(config, recipe):
     init_default_scope('mmdet')
     lrs = {}
     for name in (config, recipe):
-        cfg = Config.fromfile(osp.join(PRETRAINED, name))
+        cfg = ce.read_config(osp.join(PRETRAINED, name))
         cfg.model.backbone.init_cfg = None
         model = MODELS.build(cfg.model)
         optim = build_optim_wrapper(model, cfg.optim_wrapper)
@@ -70,7 +69,7 @@ def test_the_built_optimiser_gives_the_trunk_the_full_lr(config, recipe):
         lrs[name] = (
             {g['lr'] for g in groups if id(g['params'][0]) in trunk},
             {g['lr'] for g in groups if id(g['params'][0]) in neck})
-    base = Config.fromfile(osp.join(PRETRAINED, recipe)).mnv2_lr
+    base = ce.read_config(osp.join(PRETRAINED, recipe)).mnv2_lr
     trunk, neck = lrs[recipe]
     assert len(trunk) == 1 and trunk.pop() == pytest.approx(base * 0.1)
     assert neck == {base}

@@ -5,7 +5,6 @@ import os.path as osp
 
 import torch
 from mmdet.registry import MODELS
-from mmengine.config import Config
 from mmengine.registry import init_default_scope
 from test_parts_configs import diff, model_of
 
@@ -24,7 +23,7 @@ GN = osp.join(PRETRAINED, 'neck', 'cbnet-revised-box_mobilenet-v2_nasfpn-'
 def test_the_neck_norm_is_the_only_difference():
     changed = diff(model_of(REVISED), model_of(GN))
     assert changed == {'neck.norm_cfg.type', 'neck.norm_cfg.num_groups'}
-    gn, revised = Config.fromfile(GN), Config.fromfile(REVISED)
+    gn, revised = ce.read_config(GN), ce.read_config(REVISED)
     assert gn.model.neck.norm_cfg == dict(type='GN', num_groups=8,
                                           requires_grad=True)
     assert revised.model.neck.norm_cfg.type == 'BN'
@@ -36,7 +35,7 @@ def test_the_neck_norm_is_the_only_difference():
 def _neck_features(path, x):
     """The training-mode features of ``x`` and of its first photo alone."""
     torch.manual_seed(0)
-    model = MODELS.build(Config.fromfile(path).model)
+    model = MODELS.build(ce.read_config(path).model)
     model.train()  # the trunk's BN stays frozen (norm_eval), the neck's not
     with torch.no_grad():
         return model, model.extract_feat(x), model.extract_feat(x[:1])

@@ -5,8 +5,8 @@ import glob
 import os.path as osp
 
 import pytest
-from mmengine.config import Config
 
+from cbnet_lab.config_edits import read_config
 from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -27,7 +27,7 @@ def test_every_recipe_config_of_the_folder_is_in_the_set():
 
 @pytest.mark.parametrize('name', sorted(RECIPES))
 def test_recipe_is_box_only_on_the_real_fog_splits(name):
-    cfg, demo = Config.fromfile(RECIPES[name]), Config.fromfile(DEMO)
+    cfg, demo = read_config(RECIPES[name]), read_config(DEMO)
     assert cfg.test_condition == 'real fog'
     train = cfg.train_dataloader.dataset
     test = cfg.test_dataloader.dataset

@@ -204,15 +204,22 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
                     "data_root = 'data/bb/'\n")
     assert ce.read_config(str(path)).data_root == 'data/bb/'
     assert len(calls) == 2
-    # a config that reads the environment (as the pretrained recipes read
-    # CBNET_PRETRAINED_DIR) is read again when the environment changes
+    # a config whose base reads the environment (as the pretrained
+    # recipes' base reads CBNET_PRETRAINED_DIR) is read again when that
+    # variable is set, changed or unset, and only then
+    (tmp_path / 'trunk.py').write_text(
+        "trunk = '{{$CBNET_TEST_TRUNK_DIR:~/cache}}/t.pth'\n")
     path = tmp_path / 'env.py'
-    path.write_text("trunk = '{{$CBNET_TEST_TRUNK_DIR:~/cache}}/t.pth'\n")
+    path.write_text("_base_ = './trunk.py'\nlr = 0.1\n")
     monkeypatch.delenv('CBNET_TEST_TRUNK_DIR', raising=False)
     assert ce.read_config(str(path)).trunk == '~/cache/t.pth'
     monkeypatch.setenv('CBNET_TEST_TRUNK_DIR', '/elsewhere')
     assert ce.read_config(str(path)).trunk == '/elsewhere/t.pth'
+    monkeypatch.setenv('CBNET_TEST_OTHER', 'x')  # no config reads it
     assert ce.read_config(str(path)).trunk == '/elsewhere/t.pth'
     assert len(calls) == 4
+    monkeypatch.delenv('CBNET_TEST_TRUNK_DIR')
+    assert ce.read_config(str(path)).trunk == '~/cache/t.pth'
+    assert len(calls) == 5
     with pytest.raises(FileNotFoundError, match='no_such.py'):
         ce.read_config(str(tmp_path / 'no_such.py'))
