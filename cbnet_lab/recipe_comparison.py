@@ -324,8 +324,9 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
     # distils mask logits), tested on COCO street val (clear) and on DAWN's
     # fog + haze val (real fog, boxes): the floor, synthetic fog
     # augmentation, CBNet-DD on synthetic foggy twins, and the dark channel
-    # prior in front of the floor's own checkpoint at test time (trains
-    # nothing), on the stock cascade and on CBNet-PT (the best CBNet on
+    # prior and the peer's learned dehazer (realfog's, trained on the
+    # generated pairs) in front of the floor's own checkpoint at test time
+    # (trains nothing), on the stock cascade and on CBNet-PT (the best CBNet on
     # real photographs: the revised CBNet with FPN for NAS-FPN); the
     # in-domain ceiling is the realfog_pretrained record (SET_CEILINGS)
     'fog_transfer': [
@@ -342,6 +343,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
          '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
          'cascade-mask-rcnn_mobilenet-v2_fpn_dcp-test_coco-street-to-'
          'dawn-fog.py'),
+        ('dehazer + Cascade Mask R-CNN, clear (test only)',
+         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
+         'cascade-mask-rcnn_mobilenet-v2_fpn_dehazer-test_coco-street-to-'
+         'dawn-fog.py'),
         ('CBNet-PT, clear', 'pretrained/fog_transfer/'
          'cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft_coco-street-to-'
          'dawn-fog.py'),
@@ -354,6 +359,10 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
         ('DCP + CBNet-PT, clear (test only)',
          '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
          'cbnet-pt_mobilenet-v2_fpn-crpn_dcp-test_coco-street-to-'
+         'dawn-fog.py'),
+        ('dehazer + CBNet-PT, clear (test only)',
+         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
+         'cbnet-pt_mobilenet-v2_fpn-crpn_dehazer-test_coco-street-to-'
          'dawn-fog.py'),
     ],
     # issue 44 item 3, generated -> real: the same models trained on the
@@ -588,6 +597,61 @@ def _save_untrained(runner, path: str) -> None:
     save_checkpoint(
         dict(state_dict=weights_to_cpu(runner.model.state_dict()),
              meta=dict(untrained=True)), path)
+
+
+def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
+    """The weights a test-only row tests: ``checkpoint``, or a copy of it
+    with the weights of a front end that the row puts in front of it.
+
+    A test-only row (``compare_weights_of``) may put a part with weights
+    in front of another row's detector: a learned dehazer in its data
+    preprocessor, whose own ``init_weights`` loads it from its own file
+    (``dehaze_checkpoint``). The detector's checkpoint has none of those
+    tensors, and ``Runner.test`` does not initialise the model: tested as
+    it is, the checkpoint-fit check refuses it (rightly: the front end
+    would run with random weights). The model is built, its data
+    preprocessor alone initialised, and the tensors under
+    ``data_preprocessor.`` that the checkpoint lacks are added to a copy
+    in ``run_dir``; every other tensor still comes from ``checkpoint`` and
+    is still checked. A front end without weights (the dark channel
+    prior) tests ``checkpoint`` itself.
+
+    Args:
+        cfg (Config): The test-only row's config.
+        checkpoint (str): The other row's checkpoint.
+        run_dir (str): The test-only run's folder.
+
+    Returns:
+        tuple[str, int]: The checkpoint to test and how many tensors were
+        added (0: ``checkpoint`` itself).
+    """
+    import torch
+    from mmdet.registry import MODELS
+    from mmengine.registry import init_default_scope
+    from mmengine.runner.checkpoint import save_checkpoint
+    from mmengine.utils import import_modules_from_strings
+
+    from cbnet_mmdet.utils.checkpoint.files import read_checkpoint
+    if cfg.get('custom_imports'):
+        import_modules_from_strings(**cfg.custom_imports)
+    init_default_scope(cfg.get('default_scope', 'mmdet'))
+    model = MODELS.build(copy.deepcopy(cfg.model))
+    front = model.data_preprocessor.state_dict()
+    ckpt = read_checkpoint(checkpoint)
+    state = ckpt.get('state_dict', ckpt)
+    missing = [k for k in front if f'data_preprocessor.{k}' not in state]
+    if not missing:
+        return checkpoint, 0
+    model.data_preprocessor.init_weights()
+    front = model.data_preprocessor.state_dict()
+    state = dict(state, **{f'data_preprocessor.{k}': front[k].cpu()
+                           for k in missing})
+    meta = dict(ckpt.get('meta') or {}, front_end_added=len(missing))
+    out = osp.join(run_dir, 'front_end_' + osp.basename(checkpoint))
+    os.makedirs(run_dir, exist_ok=True)
+    with torch.no_grad():
+        save_checkpoint(dict(state_dict=state, meta=meta), out)
+    return out, len(missing)
 
 
 def result_file(out_dir: str, name: str, seed: int) -> str:
@@ -898,7 +962,10 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                 f'recipe {name!r} trains nothing: it tests the weights of '
                 f'{weights_of!r}, seed {seed}, but {checkpoint} does not '
                 f'exist; {why}')
+        checkpoint, added = with_front_end(cfg, checkpoint, run_dir)
         train_time, extra = None, dict(weights_of=weights_of)
+        if added:  # the source's weights and a front end of its own
+            extra['front_end_tensors'] = added
     elif trained_in is not None:
         with open(trained_in) as f:
             source = json.load(f)

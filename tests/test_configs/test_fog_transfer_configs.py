@@ -1,8 +1,8 @@
 """The fog_transfer configs (issue 44): every row is its clear row plus one
 stated change (synthetic fog in the training pipeline, CBNet-DD's model
-and twin pipeline, the dark channel prior at test time on the clear row's
-weights), tested also on DAWN's val split; each builds with no weights
-file."""
+and twin pipeline, the dark channel prior or the learned dehazer at test
+time on the clear row's weights), tested also on DAWN's val split; each
+builds with no weights file."""
 import glob
 import os.path as osp
 
@@ -42,7 +42,7 @@ def empty_cache(tmp_path, monkeypatch):
 
 def test_every_config_is_in_a_set():
     assert sorted(osp.normpath(p) for _, p in SET + GENERATED) == SHIPPED
-    assert len(SET) == 8 and len(GENERATED) == 4
+    assert len(SET) == 10 and len(GENERATED) == 4
 
 
 @pytest.mark.parametrize('name,path', GENERATED[1::2],
@@ -102,14 +102,23 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
             clear.model.data_preprocessor,
             type='CBNetPairedDataPreprocessor')
         assert [h.type for h in cfg.custom_hooks] == ['CBNetTeacherEMAHook']
-    else:  # the dark channel prior in front of the clear row's weights
+    else:  # a dehazer in front of the clear row's weights, test only
         assert rc.weights_sources([(f'{family}, clear', clear.filename),
                                    (name, path)])[name] == \
             f'{family}, clear'
-        assert cfg.model.data_preprocessor.type == \
-            'CBNetDehazeDataPreprocessor'
-        assert cfg.model.data_preprocessor.dehaze.type == \
-            'CBNetDarkChannelPrior'
+        pre = cfg.model.data_preprocessor
+        assert pre.type == 'CBNetDehazeDataPreprocessor'
+        assert not pre.train_dehazer
+        dehazers = load(osp.join(ROOT, 'projects', 'peer_dehaze', 'configs',
+                                 'realfog', '_base_', 'dehazers.py'))
+        if name.startswith('DCP + '):
+            assert pre.dehaze == dehazers.fog_dcp
+            assert pre.dehaze_checkpoint is None
+        else:  # the realfog set's learned dehazer, its checkpoint
+            assert name.startswith('dehazer + ')
+            assert pre.dehaze.type == 'CBNetAttentionDehazer'
+            assert pre.dehaze_checkpoint == \
+                dehazers.fog_dehazer_checkpoint
         pre = {k: v for k, v in cfg.model.data_preprocessor.items()
                if k in clear.model.data_preprocessor and k != 'type'}
         assert pre == {k: v for k, v in clear.model.data_preprocessor.items()

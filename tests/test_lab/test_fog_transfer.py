@@ -1,8 +1,9 @@
 """The fog_transfer set (issue 44) end to end on tiny files built here:
 recipes trained on a tiny COCO-format clear set (through tools/
 dataset_converters/coco_street.py), each tested on its clear val and on a
-tiny VOC real-fog folder; the dehaze-then-detect row trains nothing and
-tests the clear row's checkpoint; the ceiling comes from a record."""
+tiny VOC real-fog folder; the dehaze-then-detect rows (the dark channel
+prior, the learned dehazer) train nothing and test the clear row's
+checkpoint; the ceiling comes from a record."""
 import json
 import os
 import os.path as osp
@@ -11,10 +12,12 @@ import shutil
 from dataclasses import asdict
 
 import pytest
+import torch
 from mmengine.config import Config
 from mmengine.runner import Runner
 from test_pretrained_sets import fake_coco
 from test_pretrained_sets import fake_weights  # noqa: F401 (a fixture)
+from test_realfog import ROOT, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import ap_drop as ad
@@ -24,9 +27,9 @@ from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
 #: test-only row -> the row whose checkpoint it tests
-TEST_ONLY = {'DCP + Cascade Mask R-CNN, clear (test only)':
-             'Cascade Mask R-CNN, clear',
-             'DCP + CBNet-PT, clear (test only)': 'CBNet-PT, clear'}
+TEST_ONLY = {f'{dehazer} + {model}, clear (test only)': f'{model}, clear'
+             for dehazer in ('DCP', 'dehazer')
+             for model in ('Cascade Mask R-CNN', 'CBNet-PT')}
 SCALE = ['--img-scale', '160', '96']
 
 
@@ -59,6 +62,11 @@ def ceiling_record(path, box_ap=(12.5, 8.0)):
 def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
                                      tmp_path, monkeypatch):
     street, fog = tiny_data
+    monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
+    dehazer_file = str(tmp_path / ce.read_config(osp.join(
+        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
+        'dehazers.py')).fog_dehazer_checkpoint)
+    save_untrained_dehazer(dehazer_file)
     trained, tested = [], []
     train, evaluate = Runner.train, ad.evaluate_checkpoint
 
@@ -90,17 +98,37 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
         osp.join(slugs[n], 'seed0') for n in ROWS if n not in TEST_ONLY)
     runs = {r['recipe']: r for r in record['runs']}
     assert list(runs) == ROWS
+    source_file = {row: osp.join(slugs[source], 'seed0', 'iter_2.pth')
+                   for row, source in TEST_ONLY.items()}
     for row, source in TEST_ONLY.items():
         assert runs[row]['weights_of'] == source
         assert runs[row]['train_time_s'] is None
-        assert not [f for f in os.listdir(tmp_path / 'runs' / slugs[row] /
-                                          'seed0') if f.endswith('.pth')]
-        # it tested the source's very checkpoint, behind the dehazer, on
-        # both sets
+        weights = [f for f in os.listdir(tmp_path / 'runs' / slugs[row] /
+                                         'seed0') if f.endswith('.pth')]
+        if row.startswith('DCP + '):
+            # the prior has no weights: the source's very checkpoint
+            assert not weights and 'front_end_tensors' not in runs[row]
+            tests = source_file[row]
+        else:
+            # the learned dehazer's weights (its own file) added to a copy
+            # of the source's checkpoint, nothing else changed
+            assert weights == ['front_end_iter_2.pth']
+            tests = osp.join(slugs[row], 'seed0', weights[0])
+            own = torch.load(dehazer_file)['state_dict']
+            assert runs[row]['front_end_tensors'] == len(own)
+            source_state = torch.load(tmp_path / 'runs' /
+                                      source_file[row])['state_dict']
+            composed = torch.load(tmp_path / 'runs' / tests)['state_dict']
+            assert set(composed) == set(source_state) | {
+                f'data_preprocessor.dehazer.{k}' for k in own}
+            for k, v in composed.items():
+                torch.testing.assert_close(
+                    v, source_state[k] if k in source_state else
+                    own[k[len('data_preprocessor.dehazer.'):]])
+        # it tested those weights, behind its dehazer, on both sets
         mine = [t for t in tested if t[0].startswith(slugs[row] + '/')]
         assert [t[1:] for t in mine] == [
-            (osp.join(slugs[source], 'seed0', 'iter_2.pth'), condition,
-             'CBNetDehazeDataPreprocessor')
+            (tests, condition, 'CBNetDehazeDataPreprocessor')
             for condition in ('coco street', 'real fog')]
     # every run: clear val of its training set, then DAWN-like real fog
     # through the VOC folder given, boxes only there
