@@ -609,12 +609,12 @@ def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
     (``dehaze_checkpoint``). The detector's checkpoint has none of those
     tensors, and ``Runner.test`` does not initialise the model: tested as
     it is, the checkpoint-fit check refuses it (rightly: the front end
-    would run with random weights). The model is built, its data
-    preprocessor alone initialised, and the tensors under
-    ``data_preprocessor.`` that the checkpoint lacks are added to a copy
-    in ``run_dir``; every other tensor still comes from ``checkpoint`` and
-    is still checked. A front end without weights (the dark channel
-    prior) tests ``checkpoint`` itself.
+    would run with random weights). The data preprocessor alone is built
+    and initialised, and its tensors that the checkpoint lacks (under
+    ``data_preprocessor.``) are added to a copy in ``run_dir``; every
+    other tensor still comes from ``checkpoint`` and is still checked. A
+    front end without weights (the dark channel prior) tests
+    ``checkpoint`` itself, unread here.
 
     Args:
         cfg (Config): The test-only row's config.
@@ -625,7 +625,6 @@ def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
         tuple[str, int]: The checkpoint to test and how many tensors were
         added (0: ``checkpoint`` itself).
     """
-    import torch
     from mmdet.registry import MODELS
     from mmengine.registry import init_default_scope
     from mmengine.runner.checkpoint import save_checkpoint
@@ -635,22 +634,23 @@ def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
     if cfg.get('custom_imports'):
         import_modules_from_strings(**cfg.custom_imports)
     init_default_scope(cfg.get('default_scope', 'mmdet'))
-    model = MODELS.build(copy.deepcopy(cfg.model))
-    front = model.data_preprocessor.state_dict()
+    front = MODELS.build(copy.deepcopy(cfg.model.data_preprocessor))
+    if not front.state_dict():
+        return checkpoint, 0
     ckpt = read_checkpoint(checkpoint)
     state = ckpt.get('state_dict', ckpt)
-    missing = [k for k in front if f'data_preprocessor.{k}' not in state]
+    missing = [k for k in front.state_dict()
+               if f'data_preprocessor.{k}' not in state]
     if not missing:
         return checkpoint, 0
-    model.data_preprocessor.init_weights()
-    front = model.data_preprocessor.state_dict()
-    state = dict(state, **{f'data_preprocessor.{k}': front[k].cpu()
+    front.init_weights()
+    weights = front.state_dict()
+    state = dict(state, **{f'data_preprocessor.{k}': weights[k].cpu()
                            for k in missing})
     meta = dict(ckpt.get('meta') or {}, front_end_added=len(missing))
     out = osp.join(run_dir, 'front_end_' + osp.basename(checkpoint))
     os.makedirs(run_dir, exist_ok=True)
-    with torch.no_grad():
-        save_checkpoint(dict(state_dict=state, meta=meta), out)
+    save_checkpoint(dict(state_dict=state, meta=meta), out)
     return out, len(missing)
 
 

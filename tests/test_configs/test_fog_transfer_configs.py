@@ -106,18 +106,18 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
         assert rc.weights_sources([(f'{family}, clear', clear.filename),
                                    (name, path)])[name] == \
             f'{family}, clear'
-        pre = cfg.model.data_preprocessor
-        assert pre.type == 'CBNetDehazeDataPreprocessor'
-        assert not pre.train_dehazer
+        front = cfg.model.data_preprocessor
+        assert front.type == 'CBNetDehazeDataPreprocessor'
+        assert not front.train_dehazer
         dehazers = load(osp.join(ROOT, 'projects', 'peer_dehaze', 'configs',
                                  'realfog', '_base_', 'dehazers.py'))
         if name.startswith('DCP + '):
-            assert pre.dehaze == dehazers.fog_dcp
-            assert pre.dehaze_checkpoint is None
+            assert front.dehaze == dehazers.fog_dcp
+            assert front.dehaze_checkpoint is None
         else:  # the realfog set's learned dehazer, its checkpoint
             assert name.startswith('dehazer + ')
-            assert pre.dehaze.type == 'CBNetAttentionDehazer'
-            assert pre.dehaze_checkpoint == \
+            assert front.dehaze.type == 'CBNetAttentionDehazer'
+            assert front.dehaze_checkpoint == \
                 dehazers.fog_dehazer_checkpoint
         pre = {k: v for k, v in cfg.model.data_preprocessor.items()
                if k in clear.model.data_preprocessor and k != 'type'}
