@@ -19,7 +19,17 @@ Every test module must leave ``os.environ`` as it found it
 Every test skipped with reason ``'needs CUDA'`` is marked ``cuda``
 (``pytest_collection_modifyitems``): ``pytest -m cuda FILES`` runs the
 CUDA-only tests on a GPU machine (tools/device/run_all.py).
+
+What collection leaves alive (the imported libraries, the collected items:
+370,000 objects) is moved out of the garbage collector's sight
+(``gc.freeze``, ``pytest_collection_finish``): MMEngine's ``BaseDataset``
+calls ``gc.collect()`` each time it serialises a data list, and each full
+collection walked them all again (0.25 s). Measured on
+``tests/test_lab/test_realfog.py tests/test_datasets`` (a ``gc.callbacks``
+timer, one thread, load 3): 54 s of 177 s in collections before, 17 s of
+135 s after.
 """
+import gc
 import os
 import os.path as osp
 import socket
@@ -116,6 +126,13 @@ def environment_unchanged(request):
 #: The reason every CUDA-only test gives its skip (STYLE.md:
 #: ``skipif(not torch.cuda.is_available(), reason='needs CUDA')``).
 CUDA_SKIP_REASON = 'needs CUDA'
+
+
+def pytest_collection_finish(session):
+    """Freeze what collection built (see the module's docstring): later
+    collections walk only what the tests themselves create."""
+    gc.collect()
+    gc.freeze()
 
 
 def pytest_collection_modifyitems(config, items):
