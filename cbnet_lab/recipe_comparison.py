@@ -635,12 +635,12 @@ def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
         import_modules_from_strings(**cfg.custom_imports)
     init_default_scope(cfg.get('default_scope', 'mmdet'))
     front = MODELS.build(copy.deepcopy(cfg.model.data_preprocessor))
-    if not front.state_dict():
+    names = list(front.state_dict())
+    if not names:
         return checkpoint, 0
     ckpt = read_checkpoint(checkpoint)
     state = ckpt.get('state_dict', ckpt)
-    missing = [k for k in front.state_dict()
-               if f'data_preprocessor.{k}' not in state]
+    missing = [k for k in names if f'data_preprocessor.{k}' not in state]
     if not missing:
         return checkpoint, 0
     front.init_weights()
