@@ -28,6 +28,13 @@ collection walked them all again (0.25 s). Measured on
 ``tests/test_lab/test_realfog.py tests/test_datasets`` (a ``gc.callbacks``
 timer, one thread, load 3): 54 s of 177 s in collections before, 17 s of
 135 s after.
+
+``tools/run_tests.sh`` runs the suite in several worker processes
+(pytest-xdist), each collecting every file at once. openmim's import makes
+its cache folder ``~/.cache/mim`` if it is missing, without ``exist_ok``:
+on a fresh machine two workers importing it together raced, and one
+failed to collect (``FileExistsError``, seen once here). This file, loaded
+first by the process that starts the workers, makes the folder.
 """
 import gc
 import os
@@ -42,6 +49,9 @@ import pytest
 # cv2's import exports LD_LIBRARY_PATH and QT_QPA_* once per process:
 # imported here, before any module's environment snapshot, so that the
 # first test to load an image is not reported as leaking them.
+
+# before any worker imports openmim (see the module's docstring)
+os.makedirs(osp.join(osp.expanduser('~'), '.cache', 'mim'), exist_ok=True)
 
 # the one loader of tools/ scripts (tests/test_tools/tool_helpers.py:
 # load_tool, DEMO, demo_checkpoint), importable from every test folder
