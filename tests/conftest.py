@@ -35,6 +35,15 @@ its cache folder ``~/.cache/mim`` if it is missing, without ``exist_ok``:
 on a fresh machine two workers importing it together raced, and one
 failed to collect (``FileExistsError``, seen once here). This file, loaded
 first by the process that starts the workers, makes the folder.
+
+Every test module starts with MMEngine's default scope as the previous
+one found it (``default_scope_restored``, autouse): a ``Runner`` built
+without ``default_scope`` makes ``'mmengine'`` the current scope for the
+rest of the process, and every later ``MODELS.build`` of a name
+registered in MMDetection's registry then looks in MMEngine's root
+registry and fails (``KeyError: 'CBNetDehazeModel is not in the
+mmengine::model registry'``): which modules a pytest-xdist worker runs
+after which changes from run to run, and a CI run failed so.
 """
 import gc
 import os
@@ -131,6 +140,19 @@ def environment_unchanged(request):
     if leaked:
         pytest.fail(f'{request.module.__name__} left os.environ changed: '
                     f'{leaked} (use monkeypatch.setenv or restore_environ)')
+
+
+@pytest.fixture(scope='module', autouse=True)
+def default_scope_restored():
+    """Give the next module MMEngine's default scopes as this one found
+    them (see the module's docstring). MMEngine keeps them in
+    ``DefaultScope._instance_dict`` (the newest is the current one) and
+    itself puts a copy back the same way
+    (``DefaultScope.overwrite_default_scope``)."""
+    from mmengine.registry import DefaultScope
+    saved = DefaultScope._instance_dict.copy()
+    yield
+    DefaultScope._instance_dict = saved
 
 
 #: The reason every CUDA-only test gives its skip (STYLE.md:
