@@ -1,3 +1,3 @@
-from .metrics import CBNetInstanceMIoUMetric
+from .metrics import CBNetClassMapMetric, CBNetInstanceMIoUMetric
 
-__all__ = ['CBNetInstanceMIoUMetric']
+__all__ = ['CBNetClassMapMetric', 'CBNetInstanceMIoUMetric']

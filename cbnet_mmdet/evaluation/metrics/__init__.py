@@ -1,3 +1,4 @@
+from .class_map_metric import CBNetClassMapMetric
 from .instance_miou_metric import CBNetInstanceMIoUMetric
 
-__all__ = ['CBNetInstanceMIoUMetric']
+__all__ = ['CBNetClassMapMetric', 'CBNetInstanceMIoUMetric']
