@@ -162,7 +162,8 @@ def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
 
     Raises:
         ValueError: ``cfg`` has no ``Resize`` in its training or test
-            pipelines (the scale would silently not apply).
+            pipelines (the scale would silently not apply; a test-only
+            config, without ``train_dataloader``, in its test pipeline).
     """
     scale = tuple(int(v) for v in img_scale)
     if len(scale) != 2 or min(scale) < 1:
@@ -183,6 +184,8 @@ def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
     for key in ('train_dataloader', 'val_dataloader', 'test_dataloader'):
         if cfg.get(key) is not None:
             walk(cfg[key], 'train' if key.startswith('train') else 'test')
+    if cfg.get('train_dataloader') is None:  # a test-only config
+        del found['train']
     missing = [part for part, n in found.items() if n == 0]
     if missing:
         raise ValueError(
@@ -199,7 +202,9 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     The training loop becomes iteration-based (``budget.iters``), the lr
     schedule a linear warm-up and a poly decay over those iterations, the
     batch ``budget.batch_size``; nothing is validated during training (the
-    harness tests the last checkpoint), one checkpoint is kept.
+    harness tests the last checkpoint), one checkpoint is kept. A config
+    without ``train_dataloader`` (test-only: a pretrained detector scored
+    zero-shot) keeps no training settings: its data and image size move.
 
     Args:
         config (str): Config file.
@@ -215,21 +220,25 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     cfg = read_config(config)
     replace_data_root(cfg, data_root)
     iters = max(budget.iters, 1)
-    cfg.train_dataloader.batch_size = budget.batch_size
-    cfg.train_dataloader.num_workers = budget.num_workers
-    cfg.train_dataloader.persistent_workers = budget.num_workers > 0
-    cfg.train_cfg = dict(
-        type='IterBasedTrainLoop', max_iters=iters, val_interval=iters + 1)
+    trains = cfg.get('train_dataloader') is not None
+    if trains:
+        cfg.train_dataloader.batch_size = budget.batch_size
+        cfg.train_dataloader.num_workers = budget.num_workers
+        cfg.train_dataloader.persistent_workers = budget.num_workers > 0
+        cfg.train_cfg = dict(
+            type='IterBasedTrainLoop', max_iters=iters,
+            val_interval=iters + 1)
     for key in ('val_dataloader', 'val_cfg', 'val_evaluator'):
         cfg[key] = None
-    warmup = min(budget.warmup_iters, iters)
-    cfg.param_scheduler = [
-        dict(type='LinearLR', start_factor=1e-2, by_epoch=False, begin=0,
-             end=max(warmup, 1)),
-        dict(type='PolyLR', power=1.0, eta_min=0.0, by_epoch=False,
-             begin=0, end=iters),
-    ]
-    if budget.lr is not None:
+    if trains:
+        warmup = min(budget.warmup_iters, iters)
+        cfg.param_scheduler = [
+            dict(type='LinearLR', start_factor=1e-2, by_epoch=False,
+                 begin=0, end=max(warmup, 1)),
+            dict(type='PolyLR', power=1.0, eta_min=0.0, by_epoch=False,
+                 begin=0, end=iters),
+        ]
+    if trains and budget.lr is not None:
         cfg.optim_wrapper.optimizer.lr = budget.lr
     # a checkpoint every sixth of the run (the last one kept), so that a
     # run killed mid-way (a session's end) resumes from it, not from 0

@@ -55,7 +55,7 @@ import platform
 import re
 import shutil
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, replace
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -69,328 +69,17 @@ from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
                            read_config, resume_file)
 from .report import machine_line, plot, to_markdown
 from .metric_keys import columns as metric_columns
+from .sets import Preset, Recipe, load_presets, load_sets
 
-#: Built-in sets: (recipe name, config path relative to the configs root;
-#: the peer baseline's configs are under ``../projects/peer_dehaze/configs``,
-#: which the wheel carries beside ``configs`` in ``cbnet_mmdet/.mim``).
+#: The sets (``configs/experiments/*.py``, :mod:`cbnet_lab.sets`), read
+#: once: set name -> the set.
+SETS = load_sets()
+#: Set name -> its rows as (recipe name, config path relative to the
+#: configs root; the peer baseline's configs are under
+#: ``../projects/peer_dehaze/configs``, which the wheel carries beside
+#: ``configs`` in ``cbnet_mmdet/.mim``).
 RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
-    # the paper's neck, RPN, RoI head and loss against MMDet's stock
-    # models on the same MiT-B0 trunk, widths, data and schedule
-    'arch': [
-        ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('Cascade Mask R-CNN',
-         'demo/cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
-        ('Mask R-CNN',
-         'demo/mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
-    ],
-    # Table 3: trained on foggy images (beta 0.02)
-    'ablation': [
-        ('CE', 'demo/ablation/'
-         'cbnet_mit-b0_ablation-ce_1xb4-demo_foggy-cityscapes-like.py'),
-        ('+shape', 'demo/ablation/'
-         'cbnet_mit-b0_ablation-shape_1xb4-demo_foggy-cityscapes-like.py'),
-        ('+shape +edge', 'demo/ablation/cbnet_mit-b0_ablation-shape-edge_'
-         '1xb4-demo_foggy-cityscapes-like.py'),
-        ('+shape +edge +KD', 'demo/ablation/cbnet-dd_mit-b0_ablation-'
-         'shape-edge-kd_1xb4-demo_foggy-cityscapes-like.py'),
-    ],
-    # issue 15, the fair fight on foggy val: robust features and
-    # distillation (CBNet's road) against dehaze-then-detect (YOLO-Vehicle-
-    # Pro's), every detector at demo size; the dehazer is projects/
-    # peer_dehaze/configs/dehazer_attention_1xb4-600it_cityscapes-like.py,
-    # trained first with projects/peer_dehaze/tools/train_dehazer.py
-    'dehaze': [
-        ('(a) CBNet, clear',
-         'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('(b) CBNet, foggy', 'demo/ablation/cbnet_mit-b0_ablation-shape-'
-         'edge_1xb4-demo_foggy-cityscapes-like.py'),
-        ('(c) CBNet-DD', 'demo/ablation/cbnet-dd_mit-b0_ablation-shape-'
-         'edge-kd_1xb4-demo_foggy-cityscapes-like.py'),
-        ('(d) dehazer + CBNet, clear', '../projects/peer_dehaze/configs/'
-         'cbnet_mit-b0_nasfpn_dehazer_1xb4-demo_cityscapes-like.py'),
-        ('(e) dehazer + YOLOX-Tiny, clear', '../projects/peer_dehaze/configs/'
-         'yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py'),
-    ],
-    # issue 18: the demo CBNet before / after the speed settings, the
-    # number of NAS-FPN stacks, and the test-time proposal count (the same
-    # weights as the light-neck row, tested with 1000 instead of 300)
-    'speed': [
-        ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('CBNet light neck', 'demo/speed/'
-         'cbnet_mit-b0_nasfpn-light_1xb4-demo_cityscapes-like.py'),
-        ('CBNet light neck, 3 stacks', 'demo/speed/'
-         'cbnet_mit-b0_nasfpn-light-3stacks_1xb4-demo_cityscapes-like.py'),
-        ('CBNet light neck, 7 stacks', 'demo/speed/'
-         'cbnet_mit-b0_nasfpn-light-7stacks_1xb4-demo_cityscapes-like.py'),
-        ('CBNet light neck, k=1000 at test', 'demo/speed/'
-         'cbnet_mit-b0_nasfpn-light_test-k1000_1xb4-demo_cityscapes-like.py'),
-    ],
-    # issue 23: what each part of CBNet is worth. First table: MMDet's
-    # stock Cascade Mask R-CNN on SegFormer's MiT-B0 with ONE part of the
-    # demo CBNet swapped in; second: the demo CBNet with ONE part taken
-    # back to the stock choice (configs/demo/parts/_base_/parts.py)
-    'parts': [
-        ('stock (GELU, OPE)', 'demo/parts/cascade-mask-rcnn_mit-b0-gelu-'
-         'ope_fpn_1xb4-demo_cityscapes-like.py'),
-        ('stock +Mish+CSPE',
-         'demo/cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
-        ('stock +NAS-FPN', 'demo/parts/cascade-mask-rcnn_mit-b0_nasfpn_'
-         '1xb4-demo_cityscapes-like.py'),
-        ('stock +CRPN', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-crpn_'
-         '1xb4-demo_cityscapes-like.py'),
-        ('stock +IoU .5/.7/.9', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
-         'iou579_1xb4-demo_cityscapes-like.py'),
-        ('stock +last-stage mask', 'demo/parts/cascade-mask-rcnn_mit-b0_'
-         'fpn-last-stage-mask_1xb4-demo_cityscapes-like.py'),
-        ('stock +boundary loss', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
-         'boundary-loss_1xb4-demo_cityscapes-like.py'),
-        ('stock +sigmoid cls', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
-         'sigmoid-cls_1xb4-demo_cityscapes-like.py'),
-        ('CBNet', 'demo/cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('CBNet -Mish+CSPE', 'demo/parts/cbnet_mit-b0-gelu-ope_nasfpn_'
-         '1xb4-demo_cityscapes-like.py'),
-        ('CBNet -NAS-FPN',
-         'demo/parts/cbnet_mit-b0_fpn_1xb4-demo_cityscapes-like.py'),
-        ('CBNet -CRPN', 'demo/parts/cbnet_mit-b0_nasfpn-rpn_1xb4-demo_'
-         'cityscapes-like.py'),
-        ('CBNet -IoU .5/.7/.9', 'demo/parts/cbnet_mit-b0_nasfpn-iou567_'
-         '1xb4-demo_cityscapes-like.py'),
-        ('CBNet -last-stage mask', 'demo/parts/cbnet_mit-b0_nasfpn-mask-'
-         'per-stage_1xb4-demo_cityscapes-like.py'),
-        ('CBNet -boundary loss', 'demo/parts/cbnet_mit-b0_nasfpn-bce-mask_'
-         '1xb4-demo_cityscapes-like.py'),
-        ('CBNet -sigmoid cls', 'demo/parts/cbnet_mit-b0_nasfpn-softmax-'
-         'cls_1xb4-demo_cityscapes-like.py'),
-        # candidates for a CBNet that beats the stock cascade (section 3)
-        ('CBNet +stage masks +softmax', 'demo/parts/cbnet_mit-b0_nasfpn-'
-         'mask-per-stage-softmax-cls_1xb4-demo_cityscapes-like.py'),
-        ('CBNet +stage masks +softmax, CRPN reg 1', 'demo/parts/cbnet_mit-'
-         'b0_nasfpn-mask-per-stage-softmax-cls-crpn-reg1_1xb4-demo_'
-         'cityscapes-like.py'),
-        # what the Cascade RPN's regression weights at 1 do alone
-        ('stock +CRPN reg 1', 'demo/parts/cascade-mask-rcnn_mit-b0_fpn-'
-         'crpn-reg1_1xb4-demo_cityscapes-like.py'),
-        ('CBNet, CRPN reg 1', 'demo/parts/cbnet_mit-b0_nasfpn-crpn-reg1_'
-         '1xb4-demo_cityscapes-like.py'),
-        # the revised recipe with MMDet's RPNHead instead of the Cascade RPN
-        ('CBNet revised -CRPN', 'demo/parts/cbnet_mit-b0_nasfpn-mask-per-'
-         'stage-softmax-cls-rpn_1xb4-demo_cityscapes-like.py'),
-    ],
-    # issue 24, real fog (DAWN, RTTS or any VOC folder as --data-root):
-    # box-only recipes trained on its train split, tested on its val split;
-    # learning on fog against dehazing in front (dark channel prior, and
-    # the demo dehazer trained on the generated pairs)
-    'realfog': [
-        ('CBNet box path',
-         'realfog/cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py'),
-        ('Cascade R-CNN',
-         'realfog/cascade-rcnn_mit-b0_fpn_1xb4-demo_voc-fog.py'),
-        ('DCP + Cascade R-CNN', '../projects/peer_dehaze/configs/realfog/'
-         'cascade-rcnn_mit-b0_fpn_dcp_1xb4-demo_voc-fog.py'),
-        ('dehazer + Cascade R-CNN', '../projects/peer_dehaze/configs/'
-         'realfog/cascade-rcnn_mit-b0_fpn_dehazer_1xb4-demo_voc-fog.py'),
-        ('YOLOX-Tiny', 'realfog/yolox_tiny_1xb4-demo_voc-fog.py'),
-        ('DCP + YOLOX-Tiny', '../projects/peer_dehaze/configs/realfog/'
-         'yolox_tiny_dcp_1xb4-demo_voc-fog.py'),
-        ('dehazer + YOLOX-Tiny', '../projects/peer_dehaze/configs/realfog/'
-         'yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
-    ],
-    # issue 42, real masks: the COCO street subset (tools/dataset_
-    # converters/coco_street.py) on an ImageNet MobileNetV2 (tools/model_
-    # converters/fetch_pretrained.py), the four recipes at equal widths
-    'coco_street': [
-        ('Cascade Mask R-CNN', 'pretrained/cascade-mask-rcnn_mobilenet-v2_'
-         'fpn_1xb2-ft_coco-street.py'),
-        ('CBNet', 'pretrained/cbnet_mobilenet-v2_nasfpn-crpn_1xb2-ft_'
-         'coco-street.py'),
-        ('CBNet revised', 'pretrained/cbnet-revised_mobilenet-v2_nasfpn-'
-         'crpn_1xb2-ft_coco-street.py'),
-        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised_mobilenet-v2_'
-         'nasfpn-rpn_1xb2-ft_coco-street.py'),
-        # CBNet for pretrained trunks: the revised CBNet with FPN in place
-        # of the NAS-FPN that cost it on real fog (realfog_pretrained_parts)
-        ('CBNet-PT', 'pretrained/cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft_'
-         'coco-street.py'),
-    ],
-    # issue 42, real fog on the pretrained trunk (DAWN fog + haze at 640
-    # px): the same recipes box-only, YOLOX-Tiny (from scratch: no weights
-    # for its trunk here) and dehaze-then-detect (the dark channel prior)
-    # in front of the stock cascade; the first two rows are the question.
-    # Rows are only ever appended (runs are keyed on their names)
-    'realfog_pretrained': [
-        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
-         'ft_dawn-fog.py'),
-        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
-         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
-        ('CBNet', 'pretrained/cbnet-box_mobilenet-v2_nasfpn-crpn_1xb2-ft_'
-         'dawn-fog.py'),
-        ('CBNet revised, RPNHead', 'pretrained/cbnet-revised-box_mobilenet-'
-         'v2_nasfpn-rpn_1xb2-ft_dawn-fog.py'),
-        ('DCP + Cascade R-CNN', '../projects/peer_dehaze/configs/pretrained/'
-         'cascade-rcnn_mobilenet-v2_fpn_dcp_1xb2-ft_dawn-fog.py'),
-        ('YOLOX-Tiny (scratch)', 'pretrained/yolox_tiny_1xb2_dawn-fog.py'),
-        # issue 45, the edge model: a light FCOS on the same trunk at its
-        # own 320 px (`fixed_img_scale`: the preset's 640 px does not
-        # apply), and the same detector at 640 px (what the halving costs)
-        ('Edge FCOS-lite, 320 px', 'pretrained/fcos-lite_mobilenet-v2_fpn_'
-         '1xb2-ft_dawn-fog-320.py'),
-        ('Edge FCOS-lite, 640 px', 'pretrained/fcos-lite_mobilenet-v2_fpn_'
-         '1xb2-ft_dawn-fog.py'),
-        # CBNet for pretrained trunks (FPN in place of the NAS-FPN that cost
-        # the revised CBNet here, realfog_pretrained_parts), at this set's
-        # trunk lr; the fog_transfer set's in-domain ceiling for its model
-        ('CBNet-PT', 'pretrained/cbnet-pt-box_mobilenet-v2_fpn-crpn_1xb2-ft_'
-         'dawn-fog.py'),
-    ],
-    # why the revised CBNet's box path and the stock cascade differ on real
-    # fog (the parts set's method on the pretrained trunk): the two recipes
-    # differ there in three parts (neck, RPN, stage IoUs); each row is one
-    # of them with ONE part taken from the other (configs/pretrained/parts/).
-    # Every row at the full trunk lr (the better fine-tuning measured by
-    # realfog_pretrained_finetune, whose two rows are the whole recipes here
-    # under the same names: run in that set's work dir, their runs count)
-    'realfog_pretrained_parts': [
-        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
-         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('Cascade R-CNN +NAS-FPN, trunk lr x1', 'pretrained/parts/cascade-'
-         'rcnn_mobilenet-v2_nasfpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('Cascade R-CNN +CRPN reg 1, trunk lr x1', 'pretrained/parts/'
-         'cascade-rcnn_mobilenet-v2_fpn-crpn-reg1_1xb2-ft-trunk-lr1_'
-         'dawn-fog.py'),
-        ('Cascade R-CNN +IoU .5/.7/.9, trunk lr x1', 'pretrained/parts/'
-         'cascade-rcnn_mobilenet-v2_fpn-iou579_1xb2-ft-trunk-lr1_'
-         'dawn-fog.py'),
-        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
-         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        # FPN in place of the NAS-FPN: shipped since as the recipe for
-        # pretrained trunks (the row keeps its name: runs are keyed on it)
-        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/cbnet-pt-box_'
-         'mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised, RPNHead, trunk lr x1', 'pretrained/finetune/cbnet-'
-         'revised-box_mobilenet-v2_nasfpn-rpn_1xb2-ft-trunk-lr1_'
-         'dawn-fog.py'),
-        ('CBNet revised -IoU .5/.7/.9, trunk lr x1', 'pretrained/parts/'
-         'cbnet-revised-box_mobilenet-v2_nasfpn-crpn-iou567_1xb2-ft-trunk-'
-         'lr1_dawn-fog.py'),
-    ],
-    # fine-tuning settings on real fog: the two question rows with the
-    # trunk at the full lr instead of a tenth (configs/pretrained/finetune/;
-    # the reference rows keep their realfog_pretrained names, so runs of
-    # that set's work dir are reused)
-    'realfog_pretrained_finetune': [
-        ('Cascade R-CNN', 'pretrained/cascade-rcnn_mobilenet-v2_fpn_1xb2-'
-         'ft_dawn-fog.py'),
-        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
-         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised', 'pretrained/cbnet-revised-box_mobilenet-v2_'
-         'nasfpn-crpn_1xb2-ft_dawn-fog.py'),
-        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
-         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-    ],
-    # the neck's normalisation on real fog: the revised CBNet at the full
-    # trunk lr with NAS-FPN (BatchNorm, batches of 2), with FPN (no norm;
-    # the parts set's row) and with NAS-FPN on GroupNorm; the first two
-    # are the parts set's rows under the same names (same work dir)
-    'realfog_pretrained_neck': [
-        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
-         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        # FPN in place of the NAS-FPN: shipped since as the recipe for
-        # pretrained trunks (the row keeps its name: runs are keyed on it)
-        ('CBNet revised -NAS-FPN, trunk lr x1', 'pretrained/cbnet-pt-box_'
-         'mobilenet-v2_fpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised, NAS-FPN GN, trunk lr x1', 'pretrained/neck/cbnet-'
-         'revised-box_mobilenet-v2_nasfpn-gn-crpn_1xb2-ft-trunk-lr1_'
-         'dawn-fog.py'),
-    ],
-    # which ImageNet trunk: the stock cascade and the revised CBNet at the
-    # full trunk lr on MobileNetV2 (the realfog_pretrained_finetune rows,
-    # reused) and on EfficientNet-Lite0 (CBNetEfficientNetLite, in the
-    # plugin since the stock cascade on it won by more than a seed std,
-    # docs/accuracy.md)
-    'realfog_pretrained_trunks': [
-        ('Cascade R-CNN, trunk lr x1', 'pretrained/finetune/cascade-rcnn_'
-         'mobilenet-v2_fpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('Cascade R-CNN, EfficientNet-Lite0, trunk lr x1', 'pretrained/'
-         'trunks/cascade-rcnn_efficientnet-lite0_fpn_1xb2-ft-trunk-lr1_'
-         'dawn-fog.py'),
-        ('CBNet revised, trunk lr x1', 'pretrained/finetune/cbnet-revised-'
-         'box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-lr1_dawn-fog.py'),
-        ('CBNet revised, EfficientNet-Lite0, trunk lr x1', 'pretrained/'
-         'trunks/cbnet-revised-box_efficientnet-lite0_nasfpn-crpn_1xb2-ft-'
-         'trunk-lr1_dawn-fog.py'),
-    ],
-    # issue 44: does training with synthetic fog carry over to real fog?
-    # Trained on the CLEAR COCO street photos (with their masks: CBNet-DD
-    # distils mask logits), tested on COCO street val (clear) and on DAWN's
-    # fog + haze val (real fog, boxes): the floor, synthetic fog
-    # augmentation, CBNet-DD on synthetic foggy twins, and the dark channel
-    # prior and the peer's learned dehazer (realfog's, trained on the
-    # generated pairs) in front of the floor's own checkpoint at test time
-    # (trains nothing), on the stock cascade and on CBNet-PT (the best CBNet on
-    # real photographs: the revised CBNet with FPN for NAS-FPN); the
-    # in-domain ceiling is the realfog_pretrained record (SET_CEILINGS)
-    'fog_transfer': [
-        ('Cascade Mask R-CNN, clear', 'pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb2-ft_coco-street-to-'
-         'dawn-fog.py'),
-        ('Cascade Mask R-CNN, clear + fog aug', 'pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb2-ft-fog-aug_coco-street-'
-         'to-dawn-fog.py'),
-        ('Cascade Mask R-CNN, CBNet-DD', 'pretrained/fog_transfer/'
-         'cascade-mask-rcnn-dd_mobilenet-v2_fpn_1xb2-ft_coco-street-to-'
-         'dawn-fog.py'),
-        ('DCP + Cascade Mask R-CNN, clear (test only)',
-         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_dcp-test_coco-street-to-'
-         'dawn-fog.py'),
-        ('dehazer + Cascade Mask R-CNN, clear (test only)',
-         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_dehazer-test_coco-street-to-'
-         'dawn-fog.py'),
-        ('CBNet-PT, clear', 'pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft_coco-street-to-'
-         'dawn-fog.py'),
-        ('CBNet-PT, clear + fog aug', 'pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb2-ft-fog-aug_coco-'
-         'street-to-dawn-fog.py'),
-        ('CBNet-PT, CBNet-DD', 'pretrained/fog_transfer/'
-         'cbnet-pt-dd_mobilenet-v2_fpn-crpn_1xb2-ft_coco-street-'
-         'to-dawn-fog.py'),
-        ('DCP + CBNet-PT, clear (test only)',
-         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_dcp-test_coco-street-to-'
-         'dawn-fog.py'),
-        ('dehazer + CBNet-PT, clear (test only)',
-         '../projects/peer_dehaze/configs/pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_dehazer-test_coco-street-to-'
-         'dawn-fog.py'),
-    ],
-    # issue 44 item 3, generated -> real: the same models trained on the
-    # generated scenes, clear or with their depth-rendered fog (beta 0.02),
-    # tested on generated clear / foggy val and on DAWN's real fog val
-    # (--transfer-root): how far rendered fog is from real fog
-    'fog_generated_to_real': [
-        ('Cascade Mask R-CNN, generated clear', 'pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_cityscapes-like-to-'
-         'dawn-fog.py'),
-        ('Cascade Mask R-CNN, generated fog', 'pretrained/fog_transfer/'
-         'cascade-mask-rcnn_mobilenet-v2_fpn_1xb4-ft_foggy-cityscapes-like-'
-         'to-dawn-fog.py'),
-        ('CBNet-PT, generated clear', 'pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_cityscapes-like-to-'
-         'dawn-fog.py'),
-        ('CBNet-PT, generated fog', 'pretrained/fog_transfer/'
-         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_foggy-cityscapes-'
-         'like-to-dawn-fog.py'),
-    ],
-    # proposal recall of the three RPN heads
-    'rpn': [
-        ('CBNet CRPN',
-         'demo/rpn/crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('RPNHead', 'demo/rpn/rpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-        ('MMDet CascadeRPNHead',
-         'demo/rpn/mmdet-crpn_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'),
-    ],
+    name: [(r.name, r.config) for r in s.recipes] for name, s in SETS.items()
 }
 
 #: Reported columns: (name, metric key, scale to percent). Detection sets
@@ -399,141 +88,32 @@ RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
 DETECTION_COLUMNS = metric_columns('box AP', 'box AP50', 'mask AP',
                                    'mask AP50', 'mIoU')
 PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
-#: Sets that report other columns than :data:`DETECTION_COLUMNS`: real fog
-#: on a pretrained trunk adds COCO's AP per object size (DAWN's vehicles
-#: range from a few pixels to half the photo).
-BOX_SIZE_COLUMNS = metric_columns('box AP', 'box AP50', 'box AP_s',
-                                  'box AP_m', 'box AP_l')
-SET_COLUMNS = {
-    'realfog_pretrained': BOX_SIZE_COLUMNS,
-    'realfog_pretrained_parts': BOX_SIZE_COLUMNS,
-    'realfog_pretrained_finetune': BOX_SIZE_COLUMNS,
-    'realfog_pretrained_trunks': BOX_SIZE_COLUMNS,
-    'realfog_pretrained_neck': BOX_SIZE_COLUMNS,
-    # boxes: the only labels real fog (DAWN) has
-    'fog_transfer': metric_columns('box AP', 'box AP50'),
-    'fog_generated_to_real': metric_columns('box AP', 'box AP50'),
-}
+#: Sets that report other columns than :data:`DETECTION_COLUMNS` (their
+#: files' ``columns``): real fog on a pretrained trunk adds COCO's AP per
+#: object size (DAWN's vehicles range from a few pixels to half the photo).
+SET_COLUMNS = {name: s.columns for name, s in SETS.items()
+               if s.columns is not None}
 
-#: The in-domain ceiling of a set, tabulated from another set's record and
-#: never retrained: the record's set, the condition read from it, and which
-#: of its recipes stands beside which of this set's (by the prefix of
-#: this set's row names), and what it is. ``fog_transfer``: the same
-#: trunk and heads trained on DAWN's own train split, box-only (the
-#: realfog_pretrained set), tested on the same 65 val photos.
-SET_CEILINGS = {
-    'fog_transfer': dict(
-        set='realfog_pretrained', condition='real fog',
-        what="the same trunk and heads, box-only, trained on DAWN's own "
-        'train split',
-        rows={'Cascade Mask R-CNN': 'Cascade R-CNN',
-              'CBNet-PT': 'CBNet-PT'}),
-}
+#: The in-domain ceiling of a set (its file's ``ceiling``), tabulated
+#: from another set's record and never retrained: the record's set, the
+#: condition read from it, which of its recipes stands beside which of
+#: this set's (by the prefix of this set's row names), and what it is.
+SET_CEILINGS = {name: s.ceiling for name, s in SETS.items()
+                if s.ceiling is not None}
 
-#: Rows of a set that train exactly as rows of another set (their configs
-#: add test settings only, :func:`trained_as` checks it): with
-#: ``weights_from`` (that set's work dir) their finished runs are tested
-#: instead of trained again. ``fog_transfer``: the clear-only floor is the
-#: coco_street recipe with DAWN as a second test set.
-SET_TRAINED_AS = {
-    'fog_transfer': dict(
-        set='coco_street',
-        rows={'Cascade Mask R-CNN, clear': 'Cascade Mask R-CNN',
-              'CBNet-PT, clear': 'CBNet-PT'}),
-}
+#: Rows of a set that train exactly as rows of another set (its file's
+#: ``trained_as``; their configs add test settings only, :func:`trained_as`
+#: checks it): with ``weights_from`` (that set's work dir) their finished
+#: runs are tested instead of trained again.
+SET_TRAINED_AS = {name: s.trained_as for name, s in SETS.items()
+                  if s.trained_as is not None}
 
-
-@dataclass
-class Preset:
-    """A data root and the budget that goes with it (``--preset``).
-
-    Attributes:
-        data_root (str): Where ``generate_cityscapes_like.py --preset``
-            writes the data of the same name.
-        iters (int): Training iterations per run.
-        batch_size (int): Images per iteration.
-        warmup_iters (int): Linear warm-up iterations.
-        img_scale (tuple[int, int], optional): ``(w, h)`` of every Resize
-            (None: each config's own).
-        transfer_root (str, optional): The real-fog folder the recipes'
-            ``transfer_test`` is read from (None: the configs').
-    """
-    data_root: str
-    iters: int
-    batch_size: int
-    warmup_iters: int
-    img_scale: Optional[Tuple[int, int]] = None
-    transfer_root: Optional[str] = None
-
-    def describe(self) -> str:
-        size = 'config sizes' if self.img_scale is None else \
-            'x'.join(str(v) for v in self.img_scale[::-1])
-        tested = '' if self.transfer_root is None else \
-            f', also tested on {self.transfer_root}'
-        return (f'{self.data_root}, {self.iters} iters x '
-                f'{self.batch_size} images, {size}{tested}')
-
-
-#: The real-fog budget on the pretrained trunk: 900 iterations of 2 photos
-#: are 12 epochs of DAWN's 152 training photos (fog + haze with at least
-#: one object), the schedule of issue 42's one-seed probe (MMDet's
-#: Cascade R-CNN on this trunk: 16.2 box AP / 30.1 AP50 on the 65 val
-#: photos in ~27 min of one CPU thread), so that the stock row can be
-#: checked against it; the CBNet rows take about twice as long.
-REALFOG_PRETRAINED_ITERS = 900
-#: The real-mask budget: 36 epochs of the 71 training photos with street
-#: objects, 1290 iterations of 2 photos. Measured (docs/accuracy.md,
-#: record docs/accuracy/coco_street_curve_seed0.json): at 12 epochs the
-#: stock Cascade Mask R-CNN scored 0.5 box AP on val and had not fit its
-#: own training photos (6.6); a 36-epoch run fits them (56.3) and scores
-#: 5.2 box AP / 4.6 mask AP on val, ten times the 12-epoch run.
-COCO_STREET_ITERS = 1290
-
-#: ``demo``: the older tables of docs/accuracy.md (128x256, 120 iterations
-#: of 4 images: every recipe at 1-5 AP). ``bench``: the candidate benchmark
-#: of issue 23 (docs/accuracy.md "The benchmark"): 600 iterations of 4
-#: 256x512 images (15 epochs of the 160 training images with instances),
-#: the schedule under which the demo-size stock Mask R-CNN was measured
-#: there (29.6 mask AP at the end, one seed; the seed spread is still to
-#: be measured).
-PRESETS: Dict[str, Preset] = {
-    'demo': Preset('data/cityscapes_like', iters=120, batch_size=4,
-                   warmup_iters=30),
-    'bench': Preset('data/cityscapes_like_bench', iters=600,
-                    batch_size=4, warmup_iters=30,
-                    img_scale=(512, 256)),
-    # issue 42, fine-tuning an ImageNet trunk on real photographs, every
-    # photo at most 640x480 (COCO's as they are, DAWN's 1280-wide ones
-    # halved), batches of 2 (the configs' lr is set for them)
-    'realfog_pretrained': Preset(
-        'data/dawn_fog', iters=REALFOG_PRETRAINED_ITERS, batch_size=2,
-        warmup_iters=50, img_scale=(640, 480)),
-    'coco_street': Preset(
-        'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
-        warmup_iters=50, img_scale=(640, 480)),
-    # issue 44: trained on the clear COCO street photos at the coco_street
-    # budget (1290 iterations of 2 photos: 36 epochs of its 71 training
-    # photos, 640x480 at most), every run also tested on DAWN's fog + haze
-    # val at the same size (the realfog_pretrained set's 65 val photos)
-    'fog_transfer': Preset(
-        'data/coco_street', iters=COCO_STREET_ITERS, batch_size=2,
-        warmup_iters=50, img_scale=(640, 480),
-        transfer_root='data/dawn_fog'),
-    # issue 44 item 3: the bench preset's data and budget (600 iterations
-    # of 4 generated 256x512 scenes), DAWN's val photos resized alike
-    'fog_generated_to_real': Preset(
-        'data/cityscapes_like_bench', iters=600, batch_size=4,
-        warmup_iters=30, img_scale=(512, 256),
-        transfer_root='data/dawn_fog'),
-}
-#: The preset a set runs with when ``--preset`` is not given.
-SET_PRESETS = {'realfog_pretrained': 'realfog_pretrained',
-               'realfog_pretrained_parts': 'realfog_pretrained',
-               'realfog_pretrained_finetune': 'realfog_pretrained',
-               'realfog_pretrained_trunks': 'realfog_pretrained',
-               'realfog_pretrained_neck': 'realfog_pretrained',
-               'coco_street': 'coco_street', 'fog_transfer': 'fog_transfer',
-               'fog_generated_to_real': 'fog_generated_to_real'}
+#: The presets (``--preset``: ``configs/experiments/_base_/presets.py``).
+PRESETS: Dict[str, Preset] = load_presets()
+#: The preset a set runs with when ``--preset`` is not given (its file's
+#: ``preset``; ``demo`` where it names none).
+SET_PRESETS = {name: s.preset for name, s in SETS.items()
+               if s.preset != 'demo'}
 
 
 def resolve_recipes(set_name: Optional[str] = None,
@@ -674,15 +254,20 @@ def checkpoint_file(out_dir: str, name: str, seed: int,
 
 
 def weights_sources(
-        recipes: Sequence[Tuple[str, str]]) -> Dict[str, Optional[str]]:
+        recipes: Sequence[Tuple[str, str]],
+        rows: Optional[Dict[str, Recipe]] = None
+) -> Dict[str, Optional[str]]:
     """Which recipe's weights each recipe tests (None: its own, trained).
 
-    A config with ``compare_weights_of = PATH`` names the config of an
+    A set file's row with ``weights_of = NAME`` names an earlier row; a
+    config with ``compare_weights_of = PATH`` names the config of an
     earlier recipe of ``recipes``; ``PATH`` is relative to the config's
     folder (or absolute).
 
     Args:
         recipes (Sequence[tuple[str, str]]): (name, config path), in order.
+        rows (dict, optional): Recipe name -> its set file row
+            (:func:`set_rows`).
 
     Returns:
         dict: recipe name -> name of the recipe whose weights it tests.
@@ -692,9 +277,19 @@ def weights_sources(
             recipe is itself a test-time variant.
     """
     sources, seen = {}, {}
+    rows = rows or {}
     for name, config in recipes:
         target = read_config(config).get('compare_weights_of')
-        if target is None:
+        row = rows.get(name)
+        if row is not None and row.weights_of is not None:
+            if sources.get(row.weights_of, 'missing') is not None:
+                raise ValueError(
+                    f'recipe {name!r} tests the weights of '
+                    f'{row.weights_of!r}, which is not an earlier recipe of '
+                    'this comparison that trains (give it too, before '
+                    f'{name!r})')
+            sources[name] = row.weights_of
+        elif target is None:
             sources[name] = None
         else:
             path = osp.realpath(
@@ -709,6 +304,42 @@ def weights_sources(
             sources[name] = source
         seen.setdefault(osp.realpath(config), name)
     return sources
+
+
+def set_rows(set_name: Optional[str],
+             recipes: Sequence[Tuple[str, str]]) -> Dict[str, Recipe]:
+    """The set file rows of ``recipes`` (those of set ``set_name`` with
+    the row's own config; a ``--configs`` recipe has none)."""
+    if set_name is None:
+        return {}
+    root = configs_root()
+    rows = {r.name: r for r in SETS[set_name].recipes}
+    return {name: rows[name] for name, config in recipes
+            if name in rows and osp.realpath(config) ==
+            osp.realpath(osp.join(root, rows[name].config))}
+
+
+def row_budget(budget: Budget, row: Optional[Recipe]) -> Budget:
+    """``budget`` with a row's own ``budget`` keys over it: ``iters_scale``
+    multiplies the set's iterations (so that ``--iters`` moves every row
+    alike: ``iters_scale=2`` trains twice as long as the others), any
+    other key is a :class:`Budget` field set as it is."""
+    if row is None or not row.budget:
+        return budget
+    over = dict(row.budget)
+    scale = over.pop('iters_scale', None)
+    if scale is not None:
+        if not isinstance(scale, (int, float)) or scale <= 0:
+            raise ValueError(f'recipe {row.name!r}: iters_scale must be a '
+                             f'number > 0, got {scale!r}')
+        over['iters'] = int(round(budget.iters * scale))
+    if over.get('img_scale') is not None:
+        over['img_scale'] = tuple(over['img_scale'])
+    try:
+        return replace(budget, **over)
+    except TypeError as err:
+        raise ValueError(f'recipe {row.name!r}: budget {row.budget}: '
+                         f'{err}') from None
 
 
 def trained_as(set_name: Optional[str],
@@ -906,7 +537,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                cfg_options: Optional[dict] = None,
                weights_of: Optional[str] = None,
                transfer_root: Optional[str] = None,
-               trained_in: Optional[str] = None) -> dict:
+               trained_in: Optional[str] = None,
+               test_only: bool = False) -> dict:
     """Train one recipe with one seed and test it on clear and foggy val.
 
     Finished runs are read back from their ``result.json``. With
@@ -929,10 +561,13 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         trained_in (str, optional): The ``result.json`` of a finished run
             that trained this recipe as it is (:func:`find_trained`): its
             checkpoint is linked here and tested, nothing is trained.
+        test_only (bool): Train nothing: test the weights the config loads
+            (``load_from``: a pretrained detector, zero-shot).
 
     Returns:
         dict: ``recipe``, ``config``, ``seed``, ``train_time_s`` (None for
-        a test-time variant, which also has ``weights_of``; the source
+        a test-time variant, which also has ``weights_of``, and for a
+        test-only row, which has ``test_only`` and ``weights``; the source
         run's with ``trained_in``, then also ``trained_in``: that run's
         folder and ``trained_as``: its recipe), ``metrics`` (per
         condition: ``clear``, ``foggy beta=B``).
@@ -947,7 +582,24 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     stamp = time.strftime('%Y%m%d_%H%M%S')
     cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
     extra = {}
-    if weights_of is not None:
+    if test_only:
+        checkpoint = cfg.get('load_from')
+        if not checkpoint:
+            raise ValueError(
+                f'recipe {name!r} is test-only (it trains nothing), but its '
+                f'config {config} loads no weights (load_from)')
+        require_pretrained(cfg)  # a known file names its fetch command
+        checkpoint = osp.expanduser(checkpoint)
+        if not osp.isfile(checkpoint):
+            raise FileNotFoundError(
+                f'recipe {name!r} tests {checkpoint} (its load_from), which '
+                'does not exist')
+        weights = checkpoint
+        checkpoint, added = with_front_end(cfg, checkpoint, run_dir)
+        train_time, extra = None, dict(test_only=True, weights=weights)
+        if added:
+            extra['front_end_tensors'] = added
+    elif weights_of is not None:
         checkpoint = checkpoint_file(out_dir, weights_of, seed, budget)
         if not osp.isfile(checkpoint):
             done = osp.isfile(result_file(out_dir, weights_of, seed))
@@ -1402,7 +1054,11 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         dict: What ``compare.json`` holds.
     """
     reference = reference_condition(recipes)
-    sources = weights_sources(recipes)
+    rows = set_rows(set_name, recipes)
+    sources = weights_sources(recipes, rows)
+    # rows that train nothing and test the weights their config loads
+    fixed = {n for n, row in rows.items() if row.test_only}
+    budgets = {n: row_budget(budget, rows.get(n)) for n, _ in recipes}
     # a tabulation (train=False) reads the runs here only
     trained_elsewhere = trained_as(set_name, recipes) \
         if weights_from and train else {}
@@ -1413,7 +1069,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         if name not in trained_elsewhere:
             return None, False
         return find_trained(weights_from, trained_elsewhere[name], seed,
-                            budget, cfg_options)
+                            budgets[name], cfg_options)
 
     if train:  # a tabulation reads no data
         check_data(reference, data_root, betas)
@@ -1425,8 +1081,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     jobs = [(name, cfg, seed) for seed in seeds for name, cfg in recipes]
     # runs still to train (a test-time variant's test is not counted)
     left = sum(not osp.isfile(result_file(out_dir, n, s))
-               and sources[n] is None and trained_there(n, s)[0] is None
-               for n, _, s in jobs)
+               and sources[n] is None and n not in fixed
+               and trained_there(n, s)[0] is None for n, _, s in jobs)
     results: Dict[int, dict] = {}
     spent, fresh = 0.0, 0
     pending = list(enumerate(jobs, 1))
@@ -1476,6 +1132,9 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                        'min left')
             doing = 'training' if sources[name] is None else \
                 f'testing the weights of {sources[name]!r}'
+            if name in fixed:
+                doing = 'testing the weights its config loads (trains '\
+                    'nothing)'
             if trained_in is not None:
                 doing = ('testing the weights trained in '
                          f'{osp.dirname(trained_in)}')
@@ -1487,16 +1146,18 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
                 f'{"already done" if done else doing}{eta}')
             start = time.perf_counter()
             if done:
-                results[k] = read_result(path, budget, cfg_options)
+                results[k] = read_result(path, budgets[name], cfg_options)
                 continue
             try:
                 results[k] = run_recipe(
-                    name, config, seed, budget, data_root, betas, out_dir,
-                    cfg_options, weights_of=sources[name],
-                    transfer_root=transfer_root, trained_in=trained_in)
+                    name, config, seed, budgets[name], data_root, betas,
+                    out_dir, cfg_options, weights_of=sources[name],
+                    transfer_root=transfer_root, trained_in=trained_in,
+                    test_only=name in fixed)
             finally:
                 lock.release()
-            if sources[name] is None and trained_in is None:
+            if sources[name] is None and trained_in is None and \
+                    name not in fixed:
                 spent += time.perf_counter() - start
                 fresh += 1
                 left -= 1

@@ -256,7 +256,8 @@ def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
 
     monkeypatch.setattr(rc, 'run_recipe', no_training)
     monkeypatch.setattr(rc, 'weights_sources',
-                        lambda recipes: {n: None for n, _ in recipes})
+                        lambda recipes, rows=None: {n: None
+                                                    for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
@@ -308,7 +309,8 @@ def fake_training(tmp_path, monkeypatch, run_recipe):
     set, no plot, and a val file under ``tmp_path / 'data'``."""
     monkeypatch.setattr(rc, 'run_recipe', run_recipe)
     monkeypatch.setattr(rc, 'weights_sources',
-                        lambda recipes: {n: None for n, _ in recipes})
+                        lambda recipes, rows=None: {n: None
+                                                    for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)

@@ -1,0 +1,232 @@
+"""Experiment sets as data: one declarative file per set under
+``configs/experiments/`` (an MMEngine config), read by the comparison
+harness and by the GPU script alike.
+
+A set file names its recipes (each an MMDet config under ``configs/``, or
+``../projects/...``), the preset it runs under by default (data root and
+budget, from ``configs/experiments/_base_/presets.py``), the columns it
+reports, and, where it has them, its in-domain ceiling (another set's
+record, never retrained) and the rows that train exactly as another set's::
+
+    # what the set asks, in a comment
+    preset = 'realfog_pretrained'
+    columns = ['box AP', 'box AP50']
+    recipes = [
+        dict(name='Cascade R-CNN', config='pretrained/cascade-rcnn_....py'),
+        # tests another row's weights under its own test settings
+        dict(name='DCP + ...', config='...', weights_of='Cascade R-CNN'),
+        # trains nothing: tests the weights its config loads (load_from)
+        dict(name='zero-shot', config='...', test_only=True),
+        # its own budget over the set's: twice the set's iterations (any
+        # other key: a Budget field, set as it is)
+        dict(name='..., 24 epochs', config='...',
+             budget=dict(iters_scale=2)),
+    ]
+
+Row names are the keys of the runs (``{work_dir}/{slug(name)}/seed{s}``):
+rows are only ever appended or renamed together with their runs.
+"""
+import os.path as osp
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple
+
+from mmengine.config import Config
+
+from .config_edits import configs_root
+from .metric_keys import columns as metric_columns
+
+#: The folder of the set files, under the configs root.
+EXPERIMENTS = 'experiments'
+#: The presets file, under :data:`EXPERIMENTS`.
+PRESETS_FILE = osp.join('_base_', 'presets.py')
+#: The keys a row may have.
+ROW_KEYS = ('name', 'config', 'weights_of', 'test_only', 'budget')
+#: The keys a set file may have.
+SET_KEYS = ('preset', 'columns', 'recipes', 'ceiling', 'trained_as')
+
+
+@dataclass
+class Preset:
+    """A data root and the budget that goes with it (``--preset``).
+
+    Attributes:
+        data_root (str): Where the data of the same name is.
+        iters (int): Training iterations per run.
+        batch_size (int): Images per iteration.
+        warmup_iters (int): Linear warm-up iterations.
+        img_scale (tuple[int, int], optional): ``(w, h)`` of every Resize
+            (None: each config's own).
+        transfer_root (str, optional): The real-fog folder the recipes'
+            ``transfer_test`` is read from (None: the configs').
+    """
+    data_root: str
+    iters: int
+    batch_size: int
+    warmup_iters: int
+    img_scale: Optional[Tuple[int, int]] = None
+    transfer_root: Optional[str] = None
+
+    def describe(self) -> str:
+        size = 'config sizes' if self.img_scale is None else \
+            'x'.join(str(v) for v in self.img_scale[::-1])
+        tested = '' if self.transfer_root is None else \
+            f', also tested on {self.transfer_root}'
+        return (f'{self.data_root}, {self.iters} iters x '
+                f'{self.batch_size} images, {size}{tested}')
+
+
+@dataclass
+class Recipe:
+    """One row of a set.
+
+    Attributes:
+        name (str): The row's name (its runs' key).
+        config (str): The config, relative to the configs root.
+        weights_of (str, optional): An earlier row whose weights this row
+            tests (per seed) under its own test settings; trains nothing.
+        test_only (bool): Train nothing; test the weights the config
+            loads (``load_from``), e.g. a pretrained detector zero-shot.
+        budget (dict): This row's budget over the set's:
+            ``iters_scale`` multiplies the set's iterations (``2``: twice
+            the epochs), other keys are ``Budget`` fields.
+    """
+    name: str
+    config: str
+    weights_of: Optional[str] = None
+    test_only: bool = False
+    budget: Dict = field(default_factory=dict)
+
+
+@dataclass
+class ExperimentSet:
+    """A set file, read.
+
+    Attributes:
+        name (str): The set (its file's name).
+        file (str): The set file.
+        recipes (list[Recipe]): Its rows, in order.
+        preset (str): The preset it runs under by default.
+        columns (tuple, optional): ``(name, metric key, scale)`` of the
+            columns it reports first (None: the detection columns).
+        ceiling (dict, optional): Its in-domain ceiling, from another
+            set's record (``set``, ``condition``, ``what``, ``rows``).
+        trained_as (dict, optional): Rows that train exactly as rows of
+            another set (``set``, ``rows``: this set's name -> theirs).
+    """
+    name: str
+    file: str
+    recipes: List[Recipe]
+    preset: str = 'demo'
+    columns: Optional[tuple] = None
+    ceiling: Optional[dict] = None
+    trained_as: Optional[dict] = None
+
+    def recipe(self, name: str) -> Recipe:
+        for recipe in self.recipes:
+            if recipe.name == name:
+                return recipe
+        raise KeyError(f'set {self.name!r} has no row {name!r}; its rows: '
+                       f'{[r.name for r in self.recipes]}')
+
+
+def experiments_dir() -> str:
+    """``configs/experiments`` of the source tree or installed wheel."""
+    return osp.join(configs_root(), EXPERIMENTS)
+
+
+def set_files() -> Dict[str, str]:
+    """Set name -> its file: every ``*.py`` directly under
+    :func:`experiments_dir` (not ``_base_/``)."""
+    import glob
+    folder = experiments_dir()
+    return {osp.splitext(osp.basename(p))[0]: p
+            for p in sorted(glob.glob(osp.join(folder, '*.py')))}
+
+
+def _plain(cfg: Config) -> dict:
+    """A set file's keys (MMEngine adds none to a base-less config)."""
+    return {k: v for k, v in cfg.to_dict().items()}
+
+
+def load_presets() -> Dict[str, Preset]:
+    """Every preset of ``configs/experiments/_base_/presets.py``."""
+    path = osp.join(experiments_dir(), PRESETS_FILE)
+    presets = _plain(Config.fromfile(path)).get('presets')
+    if not isinstance(presets, dict) or not presets:
+        raise ValueError(f'{path}: no presets = dict(NAME=dict(...))')
+    out = {}
+    for name, spec in presets.items():
+        spec = dict(spec)
+        for key in ('img_scale', ):
+            if spec.get(key) is not None:
+                spec[key] = tuple(spec[key])
+        try:
+            out[name] = Preset(**spec)
+        except TypeError as err:
+            raise ValueError(f'{path}: preset {name!r}: {err}') from None
+    return out
+
+
+def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
+    """Read the set file of ``name`` (or ``path``).
+
+    Raises:
+        KeyError: No such set.
+        ValueError: A malformed file: an unknown key, a row without a name
+            or config, a name given twice, a ``weights_of`` that names no
+            earlier row, an unknown preset or column.
+    """
+    if path is None:
+        files = set_files()
+        if name not in files:
+            raise KeyError(f'unknown recipe set {name!r}; the sets '
+                           f'({experiments_dir()}): {sorted(files)}')
+        path = files[name]
+    spec = _plain(Config.fromfile(path))
+    unknown = sorted(set(spec) - set(SET_KEYS))
+    if unknown:
+        raise ValueError(f'{path}: unknown keys {unknown}; a set file has '
+                         f'{list(SET_KEYS)}')
+    rows = spec.get('recipes')
+    if not isinstance(rows, (list, tuple)) or not rows:
+        raise ValueError(f'{path}: recipes = [dict(name=..., config=...), '
+                         '...] is missing or empty')
+    recipes, seen = [], []
+    for i, row in enumerate(rows):
+        if not isinstance(row, dict) or not row.get('name') or \
+                not row.get('config'):
+            raise ValueError(f'{path}: recipe {i} needs a name and a '
+                             f'config, got {row!r}')
+        bad = sorted(set(row) - set(ROW_KEYS))
+        if bad:
+            raise ValueError(f'{path}: recipe {row["name"]!r}: unknown keys '
+                             f'{bad}; a row has {list(ROW_KEYS)}')
+        if row['name'] in seen:
+            raise ValueError(f'{path}: recipe name {row["name"]!r} given '
+                             'twice (names key the runs)')
+        of = row.get('weights_of')
+        if of is not None and of not in seen:
+            raise ValueError(f'{path}: recipe {row["name"]!r} tests the '
+                             f'weights of {of!r}, which is no earlier row')
+        seen.append(row['name'])
+        budget = dict(row.get('budget') or {})
+        recipes.append(Recipe(**dict(row, budget=budget)))
+    preset = spec.get('preset') or 'demo'
+    if preset not in load_presets():
+        raise ValueError(f'{path}: unknown preset {preset!r}; the presets: '
+                         f'{sorted(load_presets())}')
+    columns = spec.get('columns')
+    if columns is not None:
+        try:
+            columns = metric_columns(*columns)
+        except KeyError as err:
+            raise ValueError(f'{path}: unknown column {err}') from None
+    return ExperimentSet(
+        name=name, file=path, recipes=recipes, preset=preset,
+        columns=columns, ceiling=spec.get('ceiling'),
+        trained_as=spec.get('trained_as'))
+
+
+def load_sets() -> Dict[str, ExperimentSet]:
+    """Every set of :func:`set_files`, read."""
+    return {name: load_set(name, path) for name, path in set_files().items()}

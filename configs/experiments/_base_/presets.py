@@ -1,0 +1,44 @@
+# The data and budgets the experiment sets run under (compare_recipes.py
+# --preset NAME; each set file names its default). Every value is one run's
+# budget: training iterations of `batch_size` images, a linear warm-up of
+# `warmup_iters`, then a poly decay to 0; `img_scale` (w, h) is given to
+# every Resize of the training and test pipelines (None: each config's);
+# `transfer_root`: the real-fog folder of recipes with a second test set.
+presets = dict(
+    # the older tables of docs/accuracy.md: 128x256 generated scenes, 120
+    # iterations of 4 images (every recipe at 1-5 AP)
+    demo=dict(data_root='data/cityscapes_like', iters=120, batch_size=4,
+              warmup_iters=30),
+    # the benchmark (docs/accuracy.md, "The benchmark"): 600 iterations of 4
+    # 256x512 generated scenes, 15 epochs of the 160 training images with
+    # instances
+    bench=dict(data_root='data/cityscapes_like_bench', iters=600,
+               batch_size=4, warmup_iters=30, img_scale=(512, 256)),
+    # fine-tuning an ImageNet trunk on real fog: 900 iterations of 2 photos
+    # are 12 epochs of DAWN's 152 training photos (fog + haze with at least
+    # one object), every photo at most 640x480 (DAWN's 1280-wide ones
+    # halved); the configs' lr is set for batches of 2
+    realfog_pretrained=dict(data_root='data/dawn_fog', iters=900,
+                            batch_size=2, warmup_iters=50,
+                            img_scale=(640, 480)),
+    # real masks: 36 epochs of the 71 COCO street training photos with
+    # street objects, 1290 iterations of 2 (at 12 epochs the stock cascade
+    # had not fit its own training photos: docs/accuracy.md)
+    coco_street=dict(data_root='data/coco_street', iters=1290, batch_size=2,
+                     warmup_iters=50, img_scale=(640, 480)),
+    # trained on the clear COCO street photos at the coco_street budget,
+    # every run also tested on DAWN's fog + haze val at the same size
+    fog_transfer=dict(data_root='data/coco_street', iters=1290,
+                      batch_size=2, warmup_iters=50, img_scale=(640, 480),
+                      transfer_root='data/dawn_fog'),
+    # the bench preset's data and budget, DAWN's val photos resized alike
+    fog_generated_to_real=dict(
+        data_root='data/cityscapes_like_bench', iters=600, batch_size=4,
+        warmup_iters=30, img_scale=(512, 256),
+        transfer_root='data/dawn_fog'),
+    # a COCO-pretrained detector on real fog: the realfog_pretrained data,
+    # size and images seen (1800: 12 epochs of the 152 training photos) in
+    # 450 iterations of 4, the batch the YOLOX-Nano configs' lr is set for
+    realfog_coco=dict(data_root='data/dawn_fog', iters=450, batch_size=4,
+                      warmup_iters=50, img_scale=(640, 480)),
+)
