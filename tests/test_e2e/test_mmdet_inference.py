@@ -37,7 +37,9 @@ SHIPPED = sorted(
                          recursive=True) +
     glob.glob(osp.join(ROOT, 'projects', '*', 'configs', '**', '*.py'),
               recursive=True)
-    if '_base_' not in p and not osp.basename(p).startswith('dehazer_'))
+    if '_base_' not in p and not osp.basename(p).startswith('dehazer_')
+    # the experiment sets (configs/experiments) are no model configs
+    and osp.join('configs', 'experiments') not in p)
 
 
 @pytest.fixture(scope='module')

@@ -472,3 +472,29 @@ def test_dry_run_of_the_generated_to_real_set(tmp_path, monkeypatch):
     assert run['recipe'] == 'Cascade Mask R-CNN, generated clear'
     assert list(run['metrics'])[0] == 'clear'
     assert list(run['metrics'])[-1] == 'real fog'
+
+
+@pytest.mark.slow
+def test_dry_run_of_the_realfog_coco_set_writes_stand_in_weights(tmp_path):
+    """The COCO YOLOX-Nano set as the dry run runs it without
+    --pretrained: seeded stand-ins of both converted files in a folder of
+    the call's own, the fine-tuned row for 2 iterations on a tiny fog
+    folder; the caller's cache is not touched."""
+    from cbnet_tools import pretrained as pt
+    r = runner(tmp_path, '--dry-run', '--data', str(tmp_path / 'none'),
+               '--sets', 'realfog_coco')
+    env = dict(os.environ, OMP_NUM_THREADS='1')
+    env[pt.PRETRAINED_DIR_ENV] = str(tmp_path / 'users_cache')
+    rec = ra.step_harness(r, env)
+    (coco,) = rec['sets']
+    assert coco['status'] == 'ok', coco
+    assert coco['weights'] == 'stand-ins, generated (dry run)'
+    stand_ins = tmp_path / 'work' / 'pretrained_tiny' / 'realfog_coco'
+    assert sorted(p.name for p in stand_ins.iterdir()) == sorted(
+        [pt.PRETRAINED_FILES['yolox_nano']] + list(pt.DERIVED_FILES))
+    assert not (tmp_path / 'users_cache').exists()
+    with open(tmp_path / 'work' / 'harness' / 'realfog_coco' /
+              'compare.json') as f:
+        (run,) = json.load(f)['runs']
+    assert run['recipe'] == 'YOLOX-Nano COCO, fine-tuned'
+    assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0

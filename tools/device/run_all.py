@@ -105,7 +105,9 @@ def _dawn_fog_set(dry_only):
 #: the repository, the set's recipes read: carried with the call),
 #: ``dry_args`` / ``dry_needs`` (the dry run's tiny budget) and ``tiny``
 #: (``module:function(root)`` writing tiny data of the set's kind, for a
-#: dry run without the real data).
+#: dry run without the real data), optionally ``tiny_weights``
+#: (``module:function(folder)`` writing stand-ins of the pretrained files
+#: the set loads, for a dry run without ``--pretrained``).
 SETS = {
     'realfog': dict(
         data='dawn_fog',
@@ -154,6 +156,15 @@ SETS = {
     # (configs/pretrained/neck/): --sets realfog_pretrained_neck
     'realfog_pretrained_neck': _dawn_fog_set(
         'CBNet revised, NAS-FPN GN, trunk lr x1'),
+    # a COCO-pretrained YOLOX-Nano on real fog (configs/yolox_coco/) at
+    # its CPU preset's budget, so the device's seeds merge with the CPU's
+    # (--restore); --pretrained DIR must hold the two files of
+    # fetch_pretrained.py yolox_nano. The dry run writes seeded stand-ins
+    # of both (``tiny_weights``) when --pretrained is not given.
+    'realfog_coco': dict(
+        _dawn_fog_set('YOLOX-Nano COCO, fine-tuned'),
+        tiny_weights='cbnet_tools.synthetic.yolox_checkpoints:'
+        'tiny_yolox_nano'),
     # the converted split with the photos copied (a link would travel as
     # a link): tools/dataset_converters/coco_street.py SRC
     # data/device/coco_street --copy
@@ -745,6 +756,21 @@ def set_data(r: Runner, env, name, spec, key='data', tiny_key='tiny'):
     return path, 'tiny, generated (dry run)'
 
 
+def tiny_weights(r: Runner, env, name, writer):
+    """A dry run's stand-ins of a set's pretrained files (``writer``:
+    ``module:function(folder)``) in a folder of their own: the
+    environment that points the configs at it, and how they were had."""
+    folder = osp.join(r.work, 'pretrained_tiny', name)
+    module, func = writer.split(':')
+    code = f'import sys; from {module} import {func}; {func}(sys.argv[1])'
+    res = r.run([r.args.python, '-c', code, folder], 120,
+                f'harness_{name}_weights_tiny', env)
+    if res['rc'] != 0:
+        return None, 'stand-in weights could not be written'
+    return dict(env, CBNET_PRETRAINED_DIR=folder), \
+        'stand-ins, generated (dry run)'
+
+
 def step_harness(r: Runner, env) -> dict:
     t0, sets = time.time(), []
     dry = r.args.dry_run
@@ -776,6 +802,14 @@ def step_harness(r: Runner, env) -> dict:
             continue
         set_args = list(spec['dry_args' if dry else 'args'])
         work = osp.join(r.work, 'harness', name)
+        set_env = env
+        if dry and spec.get('tiny_weights') and not r.args.pretrained:
+            set_env, how = tiny_weights(r, env, name, spec['tiny_weights'])
+            rec['weights'] = how
+            if set_env is None:
+                rec['status'] = 'failed'
+                rec['note'] = how
+                continue
         cmd = [r.args.python,
                osp.join('tools', 'analysis_tools', 'compare_recipes.py'),
                '--set', name, '--data-root', data, '--work-dir', work,
@@ -787,19 +821,20 @@ def step_harness(r: Runner, env) -> dict:
             trained = osp.join(r.work, 'harness', source)
             if osp.isdir(trained):
                 cmd += ['--weights-from', trained]
-        n = min(count_runs(r.args, env, name, set_args), r.args.max_procs)
+        n = min(count_runs(r.args, set_env, name, set_args),
+                r.args.max_procs)
         rec.update(processes=n, command=' '.join(map(shlex.quote, cmd)))
         r.log(f'harness {name}: {n} processes, box {share:.0f} s')
         launched = time.time()
         res = rec['result'] = run_parallel(r, cmd, n, share,
-                                           f'harness_{name}', env)
+                                           f'harness_{name}', set_env)
         record = osp.join(work, 'compare.json')
         if res['rc'] != 0 or not osp.isfile(record) or \
                 osp.getmtime(record) < launched:
             # cut off (or a process failed): tabulate the finished runs
             rec['report'] = r.run(cmd + ['--report-only'],
                                   (DRY_BOXES if dry else BOXES)['report'],
-                                  f'harness_{name}_report', env)
+                                  f'harness_{name}_report', set_env)
         rec.update(harness_record(work))
         done = rec.get('runs_finished', 0)
         complete = res['rc'] == 0 and done and not rec.get('missing')

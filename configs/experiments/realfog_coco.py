@@ -1,0 +1,45 @@
+# A COCO-pretrained detector on real fog: MMDet's YOLOX-Nano with Megvii's
+# COCO weights (tools/model_converters/fetch_pretrained.py yolox_nano) on
+# DAWN's fog + haze photos, the seeded split of every real-fog set (the
+# same 65 val photos), 640x480 at most, 12 epochs of the 152 training
+# photos: zero-shot (the floor every real-fog row is read against), fine-
+# tuned from COCO, the fine-tuning settings measured one at a time against
+# it (a fresh classifier, 416 px, no EMA, batch norms trained, mosaic, 24
+# epochs), rendered fog as augmentation, and the peer's dehaze-then-detect
+# (the dark channel prior in front) on it (docs/robustness.md, "A
+# COCO-pretrained detector").
+preset = 'realfog_coco'
+columns = ['box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
+recipes = [
+    dict(name='YOLOX-Nano COCO, zero-shot',
+         config='yolox_coco/yolox_nano_coco-zero-shot_dawn-fog.py',
+         test_only=True),
+    dict(name='YOLOX-Nano COCO, fine-tuned',
+         config='yolox_coco/yolox_nano_coco-ft_1xb4-12e_dawn-fog.py'),
+    dict(name='YOLOX-Nano COCO, fine-tuned, fresh classifier',
+         config='yolox_coco/'
+         'yolox_nano_coco-ft-fresh-cls_1xb4-12e_dawn-fog.py'),
+    dict(name='YOLOX-Nano COCO, fine-tuned, 416 px',
+         config='yolox_coco/yolox_nano_coco-ft_1xb4-12e_dawn-fog-416.py'),
+    dict(name='YOLOX-Nano COCO, fine-tuned, no EMA',
+         config='yolox_coco/yolox_nano_coco-ft-no-ema_1xb4-12e_dawn-fog.py'),
+    dict(name='YOLOX-Nano COCO, fine-tuned, batch norms trained',
+         config='yolox_coco/'
+         'yolox_nano_coco-ft-bn-train_1xb4-12e_dawn-fog.py'),
+    dict(name='YOLOX-Nano COCO, fine-tuned, mosaic',
+         config='yolox_coco/yolox_nano_coco-ft-mosaic_1xb4-12e_dawn-fog.py'),
+    # the same recipe twice as long: 24 epochs (900 iterations of 4)
+    dict(name='YOLOX-Nano COCO, fine-tuned, 24 epochs',
+         config='yolox_coco/yolox_nano_coco-ft_1xb4-12e_dawn-fog.py',
+         budget=dict(iters_scale=2)),
+    dict(name='YOLOX-Nano COCO, fine-tuned + fog aug',
+         config='yolox_coco/'
+         'yolox_nano_coco-ft-fog-aug_1xb4-12e_dawn-fog.py'),
+    dict(name='DCP + YOLOX-Nano COCO, zero-shot',
+         config='../projects/peer_dehaze/configs/yolox_coco/'
+         'yolox_nano_coco-zero-shot_dcp_dawn-fog.py',
+         test_only=True),
+    dict(name='DCP + YOLOX-Nano COCO, fine-tuned',
+         config='../projects/peer_dehaze/configs/yolox_coco/'
+         'yolox_nano_coco-ft_dcp_1xb4-12e_dawn-fog.py'),
+]
