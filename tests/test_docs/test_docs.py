@@ -507,3 +507,14 @@ def test_install_time_check_reads_the_table(tmp_path, monkeypatch):
     recorded, mmcv = measured_install_minutes()
     assert mmcv == {'11', '14.5'}
     assert recorded == {'11', '14.5', '12', '6'}
+
+
+def test_generated_tables_are_what_their_records_print():
+    """Every ``<!-- table: compare_recipes.py ... -->`` region of the docs
+    is what its command prints from its committed record now
+    (tools/misc/update_doc_tables.py regenerates them)."""
+    from cbnet_lab.doc_tables import update_docs
+    stale = update_docs(ROOT, check=True, log=lambda *a: None)
+    assert not stale, (
+        'regenerate with python tools/misc/update_doc_tables.py: ' +
+        ', '.join(f'{r.doc}:{r.line}' for r in stale))

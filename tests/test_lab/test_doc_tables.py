@@ -1,0 +1,135 @@
+"""Generated results tables (cbnet_lab/doc_tables.py): a marked region
+gets what its command prints from its record, nothing else in the page
+changes, a stale region is named, malformed marks are errors naming the
+page and line; and a real record through the real command."""
+import json
+import os.path as osp
+
+import pytest
+from tool_helpers import load_tool
+
+from cbnet_lab import doc_tables as dt
+
+CMD = ('compare_recipes.py --set realfog_coco --report-only --restore '
+       'docs/robustness/x.json')
+PAGE = f"""# Page
+
+Text before.
+
+<!-- table: {CMD} -->
+| old | table |
+<!-- /table -->
+
+Text between.
+
+<!-- table: {CMD} --only "YOLOX-Nano COCO, zero-shot" -->
+<!-- /table -->
+After.
+"""
+
+
+def fake_render(argv, root):
+    return f'| printed | {len(argv)} args |\n'
+
+
+def write(tmp_path, text, name='page.md'):
+    (tmp_path / name).write_text(text)
+    return name
+
+
+def test_regions_are_found_with_their_commands():
+    regions = dt.find_regions(PAGE, 'page.md')
+    assert [r.line for r in regions] == [5, 11]
+    assert regions[0].argv == ['--set', 'realfog_coco', '--report-only',
+                               '--restore', 'docs/robustness/x.json']
+    assert regions[1].argv[-2:] == ['--only', 'YOLOX-Nano COCO, zero-shot']
+    assert regions[0].body == '| old | table |\n' and regions[1].body == ''
+
+
+def test_update_rewrites_the_regions_only_and_is_idempotent(tmp_path):
+    doc = write(tmp_path, PAGE)
+    stale = dt.update_docs(str(tmp_path), [doc], renderer=fake_render,
+                           log=lambda *a: None)
+    assert [r.line for r in stale] == [5, 11]
+    text = (tmp_path / doc).read_text()
+    assert text == PAGE.replace('| old | table |\n',
+                                '| printed | 5 args |\n').replace(
+        '-->\n<!-- /table -->', '-->\n| printed | 7 args |\n<!-- /table -->')
+    again = dt.update_docs(str(tmp_path), [doc], renderer=fake_render,
+                           log=lambda *a: None)
+    assert again == [] and (tmp_path / doc).read_text() == text
+
+
+def test_check_names_stale_regions_and_writes_nothing(tmp_path):
+    doc = write(tmp_path, PAGE)
+    stale = dt.update_docs(str(tmp_path), [doc], check=True,
+                           renderer=fake_render, log=lambda *a: None)
+    assert [(r.doc, r.line) for r in stale] == [(doc, 5), (doc, 11)]
+    assert (tmp_path / doc).read_text() == PAGE
+
+
+@pytest.mark.parametrize('text,match', [
+    (f'<!-- table: {CMD} -->\n| a |\n', r'page.md: the last table mark is '
+     'not closed'),
+    ('x\n<!-- /table -->\n', r'page.md:2: a closing mark without'),
+    (f'<!-- table: {CMD} -->\n<!-- table: {CMD} -->\n<!-- /table -->\n',
+     r'page.md:2: an opening mark inside a region'),
+    ('<!-- table: compare_recipes.py --set x\n --report-only -->\n'
+     '<!-- /table -->\n', r'page.md:1: a table mark is one line'),
+    ('<!-- table: train.py c.py --report-only -->\n<!-- /table -->\n',
+     r"page.md:1: a table region names \['train.py'\]"),
+    ('<!-- table: compare_recipes.py --set x -->\n<!-- /table -->\n',
+     'page.md:1: the command needs --report-only'),
+    (f'<!-- table: {CMD} --work-dir w -->\n<!-- /table -->\n',
+     'leave --work-dir out'),
+])
+def test_malformed_marks_are_errors_naming_page_and_line(text, match):
+    with pytest.raises(ValueError, match=match):
+        dt.find_regions(text, 'page.md')
+
+
+def test_a_failing_command_is_an_error_with_its_output(tmp_path):
+    with pytest.raises(RuntimeError, match="invalid choice: 'no_such_set'"):
+        dt.render(['--set', 'no_such_set', '--report-only'],
+                  dt_root())
+
+
+def dt_root():
+    return osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
+
+
+def test_a_real_record_through_the_real_command(tmp_path):
+    """Two finished runs in a record: the region gets the harness's own
+    table of them (mean and seeds as compare_recipes.py prints them)."""
+    runs = []
+    for seed, ap in ((0, 0.2), (1, 0.3)):
+        runs.append(dict(
+            recipe='YOLOX-Nano COCO, zero-shot',
+            config='yolox_coco/yolox_nano_coco-zero-shot_dawn-fog.py',
+            seed=seed, budget=dict(iters=450, batch_size=4, lr=None,
+                                   warmup_iters=50, num_workers=1,
+                                   img_scale=[640, 480]),
+            train_time_s=None, test_only=True, weights='w.pth',
+            metrics={'real fog': {
+                'coco/bbox_mAP': ap, 'coco/bbox_mAP_50': 0.4,
+                'coco/bbox_mAP_s': 0.1, 'coco/bbox_mAP_m': 0.2,
+                'coco/bbox_mAP_l': 0.4}}))
+    record = tmp_path / 'record.json'
+    record.write_text(json.dumps(dict(set='realfog_coco', runs=runs)))
+    argv = ['--set', 'realfog_coco', '--report-only', '--restore',
+            str(record), '--seeds', '0', '1', '--only',
+            'YOLOX-Nano COCO, zero-shot']
+    table = dt.render(argv, dt_root())
+    assert '| YOLOX-Nano COCO, zero-shot | 25.0 +- 7.1 | 40.0 +- 0.0 |' \
+        in table, table
+    # the command-line tool: --check fails on the stale page, then passes
+    page = tmp_path / 'page.md'
+    page.write_text(f'<!-- table: compare_recipes.py '
+                    f'{" ".join(repr(a) for a in argv)} -->\n'
+                    '<!-- /table -->\n')
+    tool = load_tool('misc/update_doc_tables.py')
+    tool.ROOT = str(tmp_path)
+    assert tool.main(['page.md', '--check']) == 1
+    assert page.read_text().count('\n') == 2
+    with pytest.raises(SystemExit):
+        tool.main(['missing.md'])
