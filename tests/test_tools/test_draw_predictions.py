@@ -4,6 +4,8 @@ import glob
 import os.path as osp
 
 import cv2
+import numpy as np
+import pytest
 from mmengine.config import Config
 
 from tool_helpers import DEMO, demo_checkpoint, load_tool
@@ -46,3 +48,47 @@ def test_threshold_is_the_evaluations(capsys):
     # a config without the metric: MMDet's default, said so
     assert tool.evaluation_score_thr(Config(dict(test_evaluator=dict(
         type='CocoMetric')))) == (0.3, "MMDetection's default")
+
+
+def test_a_folder_is_its_images(tmp_path):
+    tool = load_tool('misc/draw_predictions.py')
+    (tmp_path / 'imgs').mkdir()
+    for name in ('b.jpg', 'a.PNG', 'notes.txt'):
+        (tmp_path / 'imgs' / name).write_bytes(b'x')
+    assert tool.image_files([str(tmp_path / 'imgs')]) == [
+        str(tmp_path / 'imgs' / 'a.PNG'), str(tmp_path / 'imgs' / 'b.jpg')]
+    (tmp_path / 'txt').mkdir()
+    (tmp_path / 'txt' / 'a.txt').write_text('x')
+    with pytest.raises(ValueError, match='is a folder with no image file'):
+        tool.image_files([str(tmp_path / 'txt')])
+    with pytest.raises(FileNotFoundError, match='no such image or folder'):
+        tool.image_files([str(tmp_path / 'none.png')])
+
+
+def test_unreadable_images_are_refused_naming_the_file(tmp_path):
+    tool = load_tool('misc/draw_predictions.py')
+    text = tmp_path / 'notes.txt'
+    text.write_text('not an image')
+    good = tmp_path / 'ok.jpg'
+    cv2.imwrite(str(good), np.full((32, 48, 3), 128, np.uint8))
+    truncated = tmp_path / 'cut.jpg'
+    truncated.write_bytes(good.read_bytes()[:40])
+    for bad in (text, truncated):
+        with pytest.raises(ValueError, match=f'{bad}: not a readable image'):
+            # refused before any model is built (the config is not read)
+            tool.main(['no_config.py', 'no.pth', str(bad), '--out',
+                       str(tmp_path / 'o.png')])
+    assert tool.read_image(str(good)).shape == (32, 48, 3)
+
+
+@pytest.mark.parametrize('extra,message', [
+    (['--score-thr', '1.5'], '--score-thr must be in'),
+    (['--betas', '0'], '--betas must be > 0'),
+    (['--out', 'o.txt'], 'give an image file name'),
+])
+def test_usage_errors_are_argparse_errors(extra, message, capsys):
+    tool = load_tool('misc/draw_predictions.py')
+    argv = ['c.py', 'c.pth', 'i.png', '--out', 'o.png'] + extra
+    with pytest.raises(SystemExit) as err:
+        tool.parse_args(argv)
+    assert err.value.code == 2 and message in capsys.readouterr().err

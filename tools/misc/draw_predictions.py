@@ -37,7 +37,9 @@ def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('config')
     parser.add_argument('checkpoint')
-    parser.add_argument('images', nargs='+', help='clear image files')
+    parser.add_argument('images', nargs='+',
+                        help='clear image files, or folders (every image '
+                        'file directly inside, sorted)')
     parser.add_argument('--betas', type=float, nargs='*', default=[],
                         help='also draw the foggy twins with these betas')
     parser.add_argument('--out', required=True, help='output PNG')
@@ -46,7 +48,65 @@ def parse_args(argv=None):
         help='draw predictions scoring at least this (default: the '
         'score_thr of the config\'s CBNetInstanceMIoUMetric)')
     parser.add_argument('--device', default='cpu')
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.score_thr is not None and not 0 <= args.score_thr <= 1:
+        parser.error(f'--score-thr must be in [0, 1], got {args.score_thr}')
+    bad = [b for b in args.betas if not b > 0]
+    if bad:
+        parser.error(f'--betas must be > 0 (fog densities, 1/m), got {bad}')
+    if osp.splitext(args.out)[1].lower() not in IMAGE_EXTENSIONS:
+        parser.error(f'--out {args.out}: give an image file name (.png, '
+                     '.jpg)')
+    return args
+
+
+#: What a folder's images are (lower-case suffixes).
+IMAGE_EXTENSIONS = ('.jpg', '.jpeg', '.png', '.bmp', '.tif', '.tiff',
+                    '.webp')
+
+
+def image_files(paths):
+    """``paths`` with each folder replaced by its image files (sorted).
+
+    Raises:
+        FileNotFoundError: A path that does not exist.
+        ValueError: A folder without image files.
+    """
+    files = []
+    for path in paths:
+        if osp.isdir(path):
+            found = sorted(
+                osp.join(path, name) for name in os.listdir(path)
+                if osp.splitext(name)[1].lower() in IMAGE_EXTENSIONS and
+                osp.isfile(osp.join(path, name)))
+            if not found:
+                raise ValueError(
+                    f'{path} is a folder with no image file directly inside '
+                    f'({", ".join(IMAGE_EXTENSIONS)})')
+            files += found
+        elif not osp.exists(path):
+            raise FileNotFoundError(f'no such image or folder: {path}')
+        else:
+            files.append(path)
+    return files
+
+
+def read_image(path):
+    """The RGB image at ``path``.
+
+    Raises:
+        ValueError: The file is not an image OpenCV can decode (a text
+            file, a truncated or damaged image), naming it.
+    """
+    try:
+        img = mmcv.imread(path, channel_order='rgb')
+    except Exception as err:  # OpenCV's errors name no file
+        raise ValueError(f'{path}: not a readable image ({err})') from None
+    if img is None or img.size == 0:
+        raise ValueError(f'{path}: not a readable image (OpenCV decodes '
+                         'nothing: not an image, or a truncated/damaged '
+                         'file)')
+    return img
 
 
 #: MMDet's drawing threshold, for configs without CBNetInstanceMIoUMetric.
@@ -85,7 +145,7 @@ def draw_rows(model, rows, score_thr):
         for path in row:
             if not osp.isfile(path):
                 raise FileNotFoundError(f'no image {path}')
-            img = mmcv.imread(path, channel_order='rgb')
+            img = read_image(path)
             result = inference_detector(model, path)
             visualizer.add_datasample(
                 osp.basename(path), img, data_sample=result, draw_gt=False,
@@ -102,11 +162,15 @@ def draw_rows(model, rows, score_thr):
 
 def main(argv=None):
     args = parse_args(argv)
+    # every image found and readable before the model is built
+    images = image_files(args.images)
+    for path in images:
+        read_image(path)
     # a checkpoint that does not fill the model is refused, not drawn
     model = init_checked_detector(args.config, args.checkpoint,
                                   device=args.device)
     rows = [[img] + [foggy_path(img, b) for b in args.betas]
-            for img in args.images]
+            for img in images]
     if args.score_thr is None:
         score_thr, source = evaluation_score_thr(model.cfg)
     else:
