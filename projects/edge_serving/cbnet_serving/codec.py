@@ -42,7 +42,9 @@ def decode_image(body: bytes,
         raise BadImage(
             415, f'unsupported Content-Type {content_type!r}: send the '
             'encoded image bytes as image/png, image/jpeg or '
-            'application/octet-stream')
+            "application/octet-stream (curl: -H 'Content-Type: image/jpeg' "
+            '--data-binary @photo.jpg; without -H curl sends '
+            'application/x-www-form-urlencoded)')
     if not body:
         raise BadImage(400, 'empty request body: send an encoded image')
     if len(body) > max_bytes:

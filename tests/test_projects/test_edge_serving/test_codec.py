@@ -40,6 +40,9 @@ def test_decodes_png_and_jpeg_to_bgr():
     (b'\x89PNG\r\n\x1a\n broken', 'image/png', 400, 'not a readable'),
     (b'abc', 'application/json', 415, 'Content-Type'),
     (b'abc', None, 415, 'Content-Type'),
+    # what curl --data-binary sends without -H: the fix is named
+    (b'\x89PNG', 'application/x-www-form-urlencoded', 415,
+     "curl: -H 'Content-Type: image/jpeg' --data-binary @photo.jpg"),
     (png_header(20000, 20000), 'image/png', 413, 'too large'),
     (png_header(5000, 5000), 'image/png', 413, 'over the limit'),
 ])
