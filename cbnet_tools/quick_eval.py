@@ -105,6 +105,19 @@ def subset_coco(coco: dict, img_ids: Sequence[int], source: str) -> dict:
     return out
 
 
+def _dataset_length(ds_cfg, scope: str) -> int:
+    """How many images the test set of ``ds_cfg`` holds (built without
+    its pipeline: only its annotations are read)."""
+    from mmdet.registry import DATASETS
+    from mmengine.registry import init_default_scope
+
+    import cbnet_mmdet  # noqa: F401  (the project's dataset types)
+    init_default_scope(scope)
+    ds_cfg = copy.deepcopy(ds_cfg)
+    ds_cfg.update(pipeline=[], lazy_init=False)
+    return len(DATASETS.build(ds_cfg))
+
+
 def first_images_cfg(cfg: Config, num_images: int, out_dir: str) -> Config:
     """Copy of ``cfg`` that tests and scores its first ``num_images``
     test images only.
@@ -146,7 +159,14 @@ def first_images_cfg(cfg: Config, num_images: int, out_dir: str) -> Config:
             raise ValueError(
                 f"test set {ds.get('type')} has no COCO ann_file to cut, "
                 f'and {readers} read a whole annotation file')
-        # the metrics build the ground truth from the tested images
+        # the metrics build the ground truth from the tested images; a
+        # set that holds fewer is refused, as a COCO file's is (MMEngine's
+        # indices would silently test them all)
+        held = _dataset_length(ds, cfg.get('default_scope', 'mmdet'))
+        if num_images > held:
+            raise ValueError(f"num_images={num_images} but the test set "
+                             f"({ds.get('type')} at {ds.get('data_root')}) "
+                             f'holds {held} images')
         ds.indices = num_images
         return cfg
     path = _data_path(ds, ann_file)

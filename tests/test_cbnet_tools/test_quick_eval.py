@@ -7,8 +7,9 @@ import os.path as osp
 import pytest
 from mmengine.config import Config
 
-from cbnet_tools.quick_eval import (check_subset_scoring, first_images_cfg,
-                                    subset_coco)
+from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+from cbnet_tools.quick_eval import (_dataset_length, check_subset_scoring,
+                                    first_images_cfg, subset_coco)
 
 
 def coco(num_images, first_id=1):
@@ -61,12 +62,22 @@ def test_cut_files_and_evaluators(tmp_path):
 
 
 def test_a_set_without_coco_file_is_cut_with_indices(tmp_path):
+    tiny_fog_folder(str(tmp_path / 'fog'), num_images=10)
     cfg = Config(dict(
-        test_dataloader=dict(dataset=dict(type='CBNetVOCFogDataset',
-                                          data_root='x', ann_file='')),
+        test_dataloader=dict(dataset=dict(
+            type='CBNetVOCFogDataset', data_root=str(tmp_path / 'fog'),
+            ann_file='', split='val', test_mode=True)),
         test_evaluator=dict(type='CocoMetric', metric='bbox')))
-    out = first_images_cfg(cfg, 3, str(tmp_path))
-    assert out.test_dataloader.dataset.indices == 3
+    # the seeded val split of the 10 photos
+    held = _dataset_length(cfg.test_dataloader.dataset, 'mmdet')
+    assert 1 < held < 10
+    out = first_images_cfg(cfg, held - 1, str(tmp_path))
+    assert out.test_dataloader.dataset.indices == held - 1
+    # more than the split holds: refused, as for a COCO file
+    with pytest.raises(ValueError, match=f'num_images={held + 1} but the '
+                       r'test set \(CBNetVOCFogDataset at .*\) holds '
+                       f'{held} images'):
+        first_images_cfg(cfg, held + 1, str(tmp_path))
     check_subset_scoring(out)  # the metric builds GT from the samples
     cfg.test_evaluator.ann_file = 'whole.json'
     with pytest.raises(ValueError, match='no COCO ann_file'):
