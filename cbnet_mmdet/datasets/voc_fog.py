@@ -291,8 +291,16 @@ class CBNetVOCFogDataset(XMLDataset):
                      ', or set clip_to_image=True to clip overhanging boxes'))
 
     def filter_data(self) -> List[dict]:
-        """MMDet's filter; an empty training set is an error."""
+        """MMDet's filter, its drops counted in the log (images without
+        objects, ``filter_cfg``); an empty training set is an error."""
         data_list = super().filter_data()
+        left_out = len(self.data_list) - len(data_list)
+        if left_out:
+            MMLogger.get_current_instance().info(
+                f'{type(self).__name__} at {self.data_root} ({self.split}):'
+                f' {len(data_list)} images kept, {left_out} left out by '
+                f'filter_cfg={self.filter_cfg} (images without objects, or '
+                'smaller than min_size)')
         if not data_list and not self.test_mode:
             raise ValueError(
                 f'no training image left in {self.data_root} '

@@ -218,6 +218,29 @@ def test_no_training_image_left_is_an_error(tmp_path):
               filter_cfg=dict(filter_empty_gt=True))
 
 
+def test_images_left_out_by_the_filter_are_counted(tmp_path):
+    import logging
+
+    from mmengine.logging import MMLogger
+    write_voc_folder(str(tmp_path), {
+        'a': [('car', (1, 1, 20, 20))], 'b': [], 'c': [],
+        'd': [('person', (2, 2, 30, 40))]})
+    records = []
+    handler = logging.Handler()
+    handler.emit = records.append
+    logger = MMLogger.get_current_instance()
+    logger.addHandler(handler)
+    try:
+        ds = build(tmp_path, split='train', val_fraction=0.0001,
+                   filter_cfg=dict(filter_empty_gt=True))
+    finally:
+        logger.removeHandler(handler)
+    assert len(ds) == 2
+    lines = [r.getMessage() for r in records]
+    assert any('(train): 2 images kept, 2 left out by filter_cfg' in line
+               for line in lines), lines
+
+
 @pytest.mark.skipif(not osp.isdir(DAWN), reason='no DAWN copy at '
                     '../shared/data/dawn_fog')
 def test_dawn_fog_copy_reads_with_its_documented_counts():
