@@ -60,6 +60,18 @@ def street_categories() -> List[dict]:
             for i, name in enumerate(CITYSCAPES_CLASSES, 1)]
 
 
+def _check_entries(entries: list, key: str, fields) -> None:
+    """Every entry of ``coco[key]`` a dict with ``fields``."""
+    for k, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            raise ValueError(f'{key}[{k}] is {type(entry).__name__} '
+                             f'{entry!r:.60}, not an object')
+        lacking = [f for f in fields if f not in entry]
+        if lacking:
+            raise ValueError(f'{key}[{k}] (id {entry.get("id")}) has no '
+                             f'{lacking}')
+
+
 def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
             name_map: Optional[Dict[str, str]] = None) -> dict:
     """Split and relabel one COCO instances dict.
@@ -76,9 +88,11 @@ def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
         dict: ``{'train': coco_dict, 'val': coco_dict, 'stats': {...}}``.
 
     Raises:
-        ValueError: Malformed input (missing keys, duplicate image ids or
-            file names, an annotation of an unknown image or category, a
-            map onto an unknown class).
+        ValueError: Malformed input (missing keys, entries that are no
+            objects or lack their fields, duplicate image ids or file
+            names, an annotation of an unknown image or category, a map
+            onto an unknown class, annotations none of which is of a
+            street class).
     """
     name_map = dict(COCO_TO_STREET if name_map is None else name_map)
     bad = sorted(set(name_map.values()) - set(CITYSCAPES_CLASSES))
@@ -88,6 +102,10 @@ def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
     for key in ('images', 'annotations', 'categories'):
         if not isinstance(coco.get(key), list):
             raise ValueError(f'not a COCO instances file: no {key!r} list')
+    _check_entries(coco['images'], 'images', ('id', 'file_name'))
+    _check_entries(coco['categories'], 'categories', ('id', 'name'))
+    _check_entries(coco['annotations'], 'annotations',
+                   ('image_id', 'category_id'))
     images = {}
     for img in coco['images']:
         if img['id'] in images:
@@ -96,7 +114,10 @@ def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
     names = [img['file_name'] for img in coco['images']]
     if len(set(names)) != len(names):
         raise ValueError('two images share a file_name')
-    cat_names = {c['id']: c['name'] for c in coco['categories']}
+    # COCO's names are lower case; another file's 'Car' is COCO's 'car'
+    cat_names = {c['id']: str(c['name']).strip().lower()
+                 for c in coco['categories']}
+    name_map = {k.strip().lower(): v for k, v in name_map.items()}
     target_id = {c['name']: c['id'] for c in street_categories()}
     kept: Dict[int, List[dict]] = {i: [] for i in images}
     dropped = Counter()
@@ -116,6 +137,12 @@ def convert(coco: dict, val_fraction: float = 0.3, seed: int = 0,
         kept[ann['image_id']].append(
             dict(ann, category_id=target_id[target]))
         kept_per_class[target] += 1
+    if coco['annotations'] and not kept_per_class:
+        found = sorted({c['name'] for c in coco['categories']})
+        raise ValueError(
+            f'no annotation of a street class: the categories are '
+            f'{found[:20]}{" ..." if len(found) > 20 else ""}; the map '
+            f'reads {sorted(name_map)} (give name_map for other names)')
     # strata: photos with a street object (crowd regions alone do not
     # count) and the rest, each split alike
     street = [images[i]['file_name'] for i, anns in kept.items()
