@@ -1,3 +1,6 @@
+# Trains from nothing: 0.0 box AP on DAWN's real fog at the budgets measured
+# here (configs/realfog/README.md); for real photos start from
+# configs/yolox_coco (COCO weights) or configs/pretrained.
 # MMDet's stock Cascade R-CNN (FPN, RPNHead, softmax cascade box heads) on
 # the demo's MiT-B0 trunk, widths and budget: the `arch` baseline without
 # its mask head, on real fog (compare_recipes.py --set realfog).

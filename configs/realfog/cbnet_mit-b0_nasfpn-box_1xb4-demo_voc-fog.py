@@ -1,3 +1,6 @@
+# Trains from nothing: 0.0 box AP on DAWN's real fog at the budgets measured
+# here (configs/realfog/README.md); for real photos start from
+# configs/yolox_coco (COCO weights) or configs/pretrained.
 # CBNet's box path on real fog (compare_recipes.py --set realfog): the demo
 # CBNet (MiT-B0 trunk, NAS-FPN, Cascade RPN, three cascade box stages with
 # BCE classification) without its mask head, trained on the train split of

@@ -1,3 +1,6 @@
+# Trains from nothing: 0.0 box AP on DAWN's real fog at the budgets measured
+# here (configs/realfog/README.md); for real photos start from
+# configs/yolox_coco (COCO weights) or configs/pretrained.
 # A YOLO-family detector on real fog (compare_recipes.py --set realfog):
 # MMDet's YOLOX-Tiny at demo size, the one of the dehaze comparison
 # without a dehazer: raw 0-255 BGR in, like MMDet's YOLOX.
