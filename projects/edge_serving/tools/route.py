@@ -9,6 +9,10 @@ Usage::
         [--server-url http://127.0.0.1:8000] [--mode auto|local|server] \
         [--timeout-s 5]
 
+``LOCAL_CONFIG`` may be an ``.onnx`` file of ``export_onnx.py`` (no
+checkpoint then): the local model runs on ONNX Runtime, as an edge device
+runs it.
+
 Writes ``OUT/results.jsonl`` (one line per frame: frame, where, reason,
 transmission, local_top_score, seconds, prediction), ``OUT/run.json`` (the
 router's thresholds, the local model's and the server's ``/info``: their
@@ -26,7 +30,8 @@ from collections import Counter
 def parse_args(argv=None):
     here = osp.dirname(osp.abspath(__file__))
     p = argparse.ArgumentParser(description='cbnet_mmdet edge router')
-    p.add_argument('config', help='local (light) detector config')
+    p.add_argument('config', help='local (light) detector config, or an '
+                   '.onnx file of export_onnx.py')
     p.add_argument('checkpoint', nargs='?', help='local checkpoint')
     p.add_argument('--input', required=True,
                    help='folder of images (searched recursively) or video')
@@ -36,7 +41,10 @@ def parse_args(argv=None):
     p.add_argument('--mode', choices=['auto', 'local', 'server'])
     p.add_argument('--timeout-s', type=float)
     p.add_argument('--device', default='cpu')
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.config.endswith('.onnx') and args.checkpoint:
+        p.error(f'{args.config} carries its weights: give no checkpoint')
+    return args
 
 
 def iter_frames(path):
@@ -67,7 +75,11 @@ def main(argv=None):
     for key in ('server_url', 'mode', 'timeout_s'):
         if getattr(args, key) is not None:
             values[key] = getattr(args, key)
-    local = Predictor(args.config, args.checkpoint, args.device)
+    if args.config.endswith('.onnx'):
+        from cbnet_serving.onnx_predictor import OnnxPredictor
+        local = OnnxPredictor(args.config)
+    else:
+        local = Predictor(args.config, args.checkpoint, args.device)
     router = EdgeRouter(local, RouterConfig(**values))
     os.makedirs(args.out_dir, exist_ok=True)
     server = None if router.cfg.mode == 'local' else router.server_info()
