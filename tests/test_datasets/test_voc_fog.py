@@ -258,3 +258,78 @@ def test_dawn_fog_copy_reads_with_its_documented_counts():
     assert sizes == dict(train=153, val=65)
     assert counts == dict(car=944, person=101, truck=74, bus=47,
                           motorcycle=19, bicycle=10)
+
+
+def _pipelines():
+    """The shipped real-fog train and test pipelines (their config)."""
+    from mmengine.config import Config
+    cfg = Config.fromfile(osp.join(ROOT, 'configs', 'realfog', '_base_',
+                                   'voc-fog_box.py'))
+    return cfg.fog_train_pipeline, cfg.fog_test_pipeline
+
+
+def _with_orientation(path, value):
+    """Rewrite a JPEG with an EXIF orientation tag (pixels unchanged)."""
+    from PIL import Image
+    with Image.open(path) as img:
+        img.load()
+        exif = img.getexif()
+        exif[0x0112] = value
+        img.save(path, exif=exif.tobytes(), quality=95)
+
+
+@pytest.mark.parametrize('pipeline', ['train', 'test'])
+@pytest.mark.parametrize('case', ['half-size xml', 'exif 90', 'exif 180'])
+def test_images_that_do_not_fit_their_xml_are_errors(tmp_path, pipeline,
+                                                     case):
+    """Training and testing apply one rule: an XML whose <size> belongs to
+    another copy of the image, and an EXIF-oriented JPEG (90: the decoder
+    turns it, the size disagrees; 180: the size agrees and the boxes lie
+    on other pixels), are errors naming the file. Before, the test path
+    scored all three, and training the 180 one, without a word."""
+    write_voc_folder(str(tmp_path), {
+        n: [('car', (10, 20, 60, 50))] for n in 'abcd'})
+    img = tmp_path / 'JPEGImages' / 'a.jpg'
+    if case == 'half-size xml':
+        (tmp_path / 'Annotations' / 'a.xml').write_text(
+            voc_xml('a.jpg', (80, 48), [('car', (5, 10, 30, 25))]))
+    else:
+        _with_orientation(img, 6 if case == 'exif 90' else 3)
+    train, test = _pipelines()
+    (tmp_path / 'ImageSets').mkdir()
+    (tmp_path / 'ImageSets' / 'all.txt').write_text('a\nb\nc\nd\n')
+    ds = CBNetVOCFogDataset(
+        data_root=str(tmp_path), ann_file='ImageSets/all.txt',
+        test_mode=pipeline == 'test',
+        pipeline=train if pipeline == 'train' else test)
+    index = 0  # 'a', the image set's first
+    match = {'half-size xml': 'is 96x160 .HxW. but its annotations say '
+             '48x80', 'exif 90': 'carries EXIF orientation 6',
+             'exif 180': 'carries EXIF orientation 3'}[case]
+    with pytest.raises(ValueError, match=match) as err:
+        ds[index]
+    assert str(img) in str(err.value)
+    # the other images of the folder load as before
+    other = (index + 1) % len(ds)
+    assert ds[other]['data_samples'].ori_shape == (96, 160)
+
+
+def test_exif_orientation_accepted_where_it_cannot_mislead(tmp_path):
+    """A photo without annotations (DetInferencer's data: no height and
+    width) keeps the decoder's upright image; `allow_exif_orientation`
+    (pixels read as stored) accepts an annotated one."""
+    import numpy as np
+    from cbnet_mmdet.datasets.transforms import CBNetCheckImage
+    write_voc_folder(str(tmp_path), {'a': [('car', (10, 20, 60, 50))]})
+    path = str(tmp_path / 'JPEGImages' / 'a.jpg')
+    _with_orientation(path, 3)
+    img = np.zeros((96, 160, 3), np.uint8)
+    CBNetCheckImage().transform(dict(img=img, img_path=path))
+    annotated = dict(img=img, img_path=path, height=96, width=160)
+    with pytest.raises(ValueError, match='EXIF orientation 3'):
+        CBNetCheckImage().transform(dict(annotated))
+    CBNetCheckImage(allow_exif_orientation=True).transform(dict(annotated))
+    with pytest.raises(ValueError, match='is 96x160 .* annotations say '
+                       '48x80'):
+        CBNetCheckImage(allow_exif_orientation=True).transform(
+            dict(annotated, height=48, width=80))

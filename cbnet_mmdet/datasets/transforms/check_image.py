@@ -5,6 +5,8 @@ import numpy as np
 from mmcv.transforms import BaseTransform
 from mmdet.registry import TRANSFORMS
 
+from .annotated_image import check_annotated_image
+
 
 @TRANSFORMS.register_module()
 class CBNetCheckImage(BaseTransform):
@@ -18,12 +20,24 @@ class CBNetCheckImage(BaseTransform):
     transform raises a ``ValueError`` naming the file (or the array's
     shape) and the fix instead. It changes nothing.
 
+    An image of a dataset (its data info gives ``height`` and ``width``,
+    as in ``tools/test.py`` and every evaluation) is checked as training
+    checks it (:mod:`.annotated_image`): its size must be the one its
+    annotations give, and an EXIF orientation is refused, naming the
+    file, so that no AP is computed against boxes on other pixels.
+
     Args:
         channels (int): Channels the model takes. Defaults to 3 (BGR).
+        allow_exif_orientation (bool): Accept annotated images with an
+            EXIF orientation (when the loader reads the stored pixels with
+            ``color_type='color_ignore_orientation'`` and the annotations
+            were drawn on them). Defaults to False.
     """
 
-    def __init__(self, channels: int = 3) -> None:
+    def __init__(self, channels: int = 3,
+                 allow_exif_orientation: bool = False) -> None:
         self.channels = channels
+        self.allow_exif_orientation = allow_exif_orientation
 
     def transform(self, results: dict) -> Optional[dict]:
         """Return ``results`` unchanged when its image fits.
@@ -47,7 +61,9 @@ class CBNetCheckImage(BaseTransform):
         if img.shape[0] == 0 or img.shape[1] == 0:
             raise ValueError(f'{name}: the image is empty (shape '
                              f'{tuple(img.shape)})')
+        check_annotated_image(img, results, self.allow_exif_orientation)
         return results
 
     def __repr__(self) -> str:
-        return f'{type(self).__name__}(channels={self.channels})'
+        return (f'{type(self).__name__}(channels={self.channels}, '
+                f'allow_exif_orientation={self.allow_exif_orientation})')

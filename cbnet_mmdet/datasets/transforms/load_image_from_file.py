@@ -12,6 +12,8 @@ from typing import Optional
 from mmcv.transforms import LoadImageFromFile
 from mmdet.registry import TRANSFORMS
 
+from .annotated_image import check_annotated_image
+
 
 @TRANSFORMS.register_module()
 class CBNetLoadImageFromFile(LoadImageFromFile):
@@ -24,7 +26,9 @@ class CBNetLoadImageFromFile(LoadImageFromFile):
     ``ignore_empty=True`` such images are skipped as in MMCV. An image
     whose size differs from the ``height``/``width`` its annotations give
     (the dataset's data info) raises ``ValueError`` naming the file,
-    instead of a reshape error when its masks are decoded.
+    instead of a reshape error when its masks are decoded, and so does an
+    annotated image with an EXIF orientation (:mod:`.annotated_image`:
+    the same rule as the test pipelines' ``CBNetCheckImage``).
 
     Args:
         **kwargs: ``mmcv.transforms.LoadImageFromFile`` arguments.
@@ -52,11 +56,8 @@ class CBNetLoadImageFromFile(LoadImageFromFile):
             # MMCV's `assert img is not None` is gone under python -O
             raise ValueError(f'cannot decode image {filename}: empty or '
                              f'not an image file')
-        if out is not None and 'height' in results and 'width' in results:
-            expected = (results['height'], results['width'])
-            if tuple(out['img'].shape[:2]) != expected:
-                raise ValueError(
-                    f'image {filename} is {out["img"].shape[0]}x'
-                    f'{out["img"].shape[1]} (HxW) but its annotations say '
-                    f'{expected[0]}x{expected[1]}')
+        if out is not None:
+            check_annotated_image(
+                out['img'], results,
+                allow_orientation='ignore_orientation' in self.color_type)
         return out

@@ -2,7 +2,8 @@
 from mmdet.registry import RUNNERS
 from mmengine.runner import Runner
 
-from cbnet_mmdet.utils.checkpoint.files import (read_checkpoint,
+from cbnet_mmdet.utils.checkpoint.files import (diverged_problem,
+                                                read_checkpoint,
                                                 resume_checkpoint)
 from cbnet_mmdet.utils.checkpoint.safe_globals import mmengine_safe_globals
 
@@ -28,7 +29,10 @@ class CBNetRunner(Runner):
       non-checkpoint file raises one error naming it, the problem and the
       newest intact checkpoint of the work dir;
     * ``load_from`` alone: the file is checked before MMEngine loads it;
-      any dict of tensors may be loaded.
+      any dict of tensors may be loaded, except a checkpoint that the
+      divergence record of its folder names (by content, so a copied work
+      dir keeps it) as written after the weights went bad: refused as
+      ``--resume`` refuses it.
 
     MMEngine's loading runs inside
     :func:`~cbnet_mmdet.utils.checkpoint.safe_globals.mmengine_safe_globals`
@@ -55,6 +59,9 @@ class CBNetRunner(Runner):
             self.logger.info('resume: no checkpoint in the work dir '
                              f'{self.work_dir}; training from scratch')
         if self._load_from is not None:
+            problem = diverged_problem(self._load_from)
+            if problem:
+                raise ValueError(f'load_from {self._load_from}: {problem}')
             self.load_checkpoint(self._load_from)
             self._has_loaded = True
 

@@ -288,11 +288,25 @@ def last_checkpoint_in(work_dir: str) -> Tuple[Optional[str], str]:
                   f'dir {work_dir}')
 
 
-def _file_id(path: str) -> List[int]:
-    """Size and modification time (ns) of a file: a checkpoint written
-    again under the same name is another file."""
+def _file_id(path: str) -> Dict[str, object]:
+    """Size and SHA-256 of a file: a checkpoint is named by its content,
+    so that a copied work dir (``cp -r`` gives the files new times) keeps
+    its record, and a file written again under the same name is another
+    file."""
+    return dict(size=os.stat(path).st_size, sha256=sha256_file(path))
+
+
+def _same_file(path: str, ident) -> bool:
+    """Whether ``path`` is the file a record's ``ident`` names. Records
+    written before checkpoints were named by content hold ``[size,
+    mtime_ns]`` and are compared that way."""
+    if not osp.isfile(path):
+        return False
+    if isinstance(ident, dict):
+        return (os.stat(path).st_size == ident.get('size')
+                and sha256_file(path) == ident.get('sha256'))
     stat = os.stat(path)
-    return [stat.st_size, stat.st_mtime_ns]
+    return [stat.st_size, stat.st_mtime_ns] == list(ident)
 
 
 def record_divergence(work_dir: str, message: str,
@@ -300,6 +314,7 @@ def record_divergence(work_dir: str, message: str,
     """Write :data:`DIVERGENCE_RECORD` into ``work_dir``: training stopped
     with ``message`` and the checkpoints ``unsafe`` hold weights written
     after they went bad (``CBNetNonFiniteLossHook`` calls it as it stops).
+    Each file is recorded by its size and SHA-256.
 
     Returns:
         str: The record's path.
@@ -314,8 +329,9 @@ def record_divergence(work_dir: str, message: str,
 def diverged_checkpoints(work_dir: str) -> Tuple[List[str], str]:
     """The checkpoints of ``work_dir`` that its :data:`DIVERGENCE_RECORD`
     names as written after the weights went bad, and still the same files
-    (one written again since, by a run resumed from a clean checkpoint, is
-    not), with the record's error ('' without a record)."""
+    by content (one written again since, by a run resumed from a clean
+    checkpoint, is not; a copy of the work dir keeps them), with the
+    record's error ('' without a record)."""
     record = osp.join(work_dir, DIVERGENCE_RECORD)
     if not osp.isfile(record):
         return [], ''
@@ -329,10 +345,37 @@ def diverged_checkpoints(work_dir: str) -> Tuple[List[str], str]:
                          f'only to resume from any of them') from err
     unsafe = [
         osp.join(work_dir, name) for name, ident in files.items()
-        if osp.isfile(osp.join(work_dir, name))
-        and _file_id(osp.join(work_dir, name)) == list(ident)
+        if _same_file(osp.join(work_dir, name), ident)
     ]
     return unsafe, error.split('. ')[0]
+
+
+def _went_bad(error: str) -> str:
+    return (f'written after the weights went bad (the run stopped: '
+            f'{error})')
+
+
+def _intact_hint(work_dir: str, exclude: Sequence[str]) -> str:
+    bad = {osp.realpath(p) for p in exclude}
+    intact = [p for p, _ in intact_checkpoints(work_dir)
+              if osp.realpath(p) not in bad]
+    return (f' (newest intact checkpoint of {work_dir}: {intact[0]})'
+            if intact else '')
+
+
+def diverged_problem(path: str) -> str:
+    """Why ``path`` must not be loaded as a starting point: '' unless the
+    :data:`DIVERGENCE_RECORD` of its folder names it (by content) as
+    written after the weights went bad; then the reason, with the newest
+    intact clean checkpoint of that folder, if any. ``CBNetRunner``
+    refuses such a file for ``load_from`` as for ``--resume``."""
+    if '://' in path or not osp.isfile(path):
+        return ''
+    work_dir = osp.dirname(osp.abspath(path))
+    diverged, error = diverged_checkpoints(work_dir)
+    if osp.realpath(path) not in {osp.realpath(p) for p in diverged}:
+        return ''
+    return _went_bad(error) + _intact_hint(work_dir, diverged)
 
 
 def resume_checkpoint(work_dir: str,
@@ -367,20 +410,18 @@ def resume_checkpoint(work_dir: str,
         return path, []  # remote: MMEngine's loader
     diverged, error = diverged_checkpoints(work_dir)
     bad = {osp.realpath(p) for p in diverged}
-    went_bad = (f'written after the weights went bad (the run stopped: '
-                f'{error})')
+    went_bad = _went_bad(error)
     if path is not None:
         problem = checkpoint_problem(path)
-        if not problem and osp.realpath(path) in bad:
-            problem = went_bad
+        if problem or osp.realpath(path) in bad:
+            problem = (problem or went_bad) + _intact_hint(
+                work_dir, [*diverged, path])
+        else:  # a diverged checkpoint of another run's folder
+            problem = diverged_problem(path)
         if problem:
-            intact = [p for p, _ in intact_checkpoints(work_dir)
-                      if osp.realpath(p) not in bad | {osp.realpath(path)}]
-            hint = (f' (newest intact checkpoint of {work_dir}: '
-                    f'{intact[0]})' if intact else '')
             kind = FileNotFoundError if not osp.isfile(path) else \
                 pickle.UnpicklingError if 'refuse' in problem else ValueError
-            raise kind(f'--resume {path}: {problem}{hint}')
+            raise kind(f'--resume {path}: {problem}')
         return path, []
     latest, note = last_checkpoint_in(work_dir)
     notes = [note] if note else []

@@ -1,5 +1,6 @@
 """CBNetNonFiniteLossHook on a mock runner and in a real (toy) training
 loop; its state across a resume (the runner's side: test_cbnet_runner.py)."""
+import hashlib
 import json
 import math
 import re
@@ -112,9 +113,9 @@ def test_finite_blowup_stops_before_its_checkpoint(tmp_path):
     assert saved == ['iter_1.pth', 'iter_2.pth']
     record = json.loads((tmp_path / 'diverged.json').read_text())
     assert record['error'] == msg
-    stat = (tmp_path / 'iter_2.pth').stat()
-    assert record['unsafe'] == {'iter_2.pth': [stat.st_size,
-                                               stat.st_mtime_ns]}
+    data = (tmp_path / 'iter_2.pth').read_bytes()
+    assert record['unsafe'] == {'iter_2.pth': dict(
+        size=len(data), sha256=hashlib.sha256(data).hexdigest())}
 
 
 def test_nan_after_a_blowup_names_the_really_clean_checkpoint(tmp_path):

@@ -244,6 +244,62 @@ def test_resume_path_of_a_diverged_checkpoint_refused(tmp_path, train):
         f'(newest intact checkpoint of {work}: {work}/iter_1.pth)')
 
 
+def test_copied_diverged_work_dir_keeps_its_record(tmp_path, train):
+    """``cp -r`` gives every file a new time: the record names the
+    diverged checkpoints by content, so the copy still falls back to its
+    clean one (by size and time, the copy resumed the bad iter_4.pth)."""
+    work = tmp_path / 'run'
+    diverge(train, work, {3: 1e4, 4: 1e6, 5: 'nan'})
+    copy = tmp_path / 'copy'
+    shutil.copytree(work, copy, copy_function=shutil.copyfile)  # as cp -r
+    assert (copy / 'iter_4.pth').stat().st_mtime_ns != \
+        (work / 'iter_4.pth').stat().st_mtime_ns
+    log = train(copy, '--resume', max_iters=6)
+    assert (f'resume: latest checkpoint unusable: {copy}/iter_4.pth was '
+            f'written after the weights went bad') in log
+    assert f'Auto resumed from {copy}/iter_1.pth' in log
+
+
+def test_load_from_a_diverged_checkpoint_refused(tmp_path, train):
+    """``load_from`` of a checkpoint the record names is refused with the
+    message ``--resume`` gives, in the original work dir and in a copy;
+    a clean checkpoint of the same run loads."""
+    work = tmp_path / 'run'
+    diverge(train, work, {3: 1e4, 4: 1e6, 5: 'nan'})
+    copy = tmp_path / 'copy'
+    shutil.copytree(work, copy, copy_function=shutil.copyfile)
+    for folder in (work, copy):
+        bad = folder / 'iter_3.pth'
+        with pytest.raises(ValueError) as err:
+            train(tmp_path / 'new', '--cfg-options', f'load_from={bad}')
+        assert str(err.value) == (
+            f'load_from {bad}: written after the weights went bad (the run '
+            f'stopped: non-finite loss at iteration 5 (epoch 1, batch 4): '
+            f'loss=nan, loss_toy=nan) (newest intact checkpoint of '
+            f'{folder}: {folder}/iter_1.pth)')
+    log = train(tmp_path / 'new', '--cfg-options',
+                f'load_from={work}/iter_1.pth')
+    assert f'Load checkpoint from {work}/iter_1.pth' in log
+
+
+def test_divergence_record_of_the_earlier_format_still_read(tmp_path,
+                                                            train):
+    """A record written as [size, mtime_ns] per file is still honoured."""
+    import json
+    work = tmp_path / 'run'
+    diverge(train, work, {3: 1e4, 4: 1e6, 5: 'nan'})
+    record = work / 'diverged.json'
+    content = json.loads(record.read_text())
+    assert set(content['unsafe']['iter_3.pth']) == {'size', 'sha256'}
+    content['unsafe'] = {
+        name: [(work / name).stat().st_size,
+               (work / name).stat().st_mtime_ns]
+        for name in content['unsafe']}
+    record.write_text(json.dumps(content))
+    with pytest.raises(ValueError, match='written after the weights went'):
+        train(work, '--resume', str(work / 'iter_3.pth'), max_iters=6)
+
+
 def test_the_check_resumes_with_its_history(tmp_path, train):
     """A blow-up right after a resume is judged against the losses before
     the interruption (without them, the first resumed loss would be the
