@@ -1,5 +1,5 @@
-"""Importing ``cbnet_mmdet`` registers its components and does nothing else
-(issue 43).
+"""Importing ``cbnet_mmdet`` registers its components and does nothing
+else.
 
 In a fresh interpreter, everything the plugin's import pulls in from other
 packages is imported first (the list is read from a second fresh

@@ -30,7 +30,7 @@ bash tools/install.sh
 
 CONFIG=configs/demo/cbnet_mit-b0_nasfpn_1xb4-8e_cityscapes-like-bench.py
 WORK=${DEMO_WORK_DIR:-work_dirs/demo}
-# the benchmark preset (issue 23): 200 train / 50 val 256x512 images, the
+# the benchmark preset: 200 train / 50 val 256x512 images, the
 # folder compare_recipes.py --preset bench reads too; smaller sets (the
 # knobs) go to their own folder, so the benchmark's data is never replaced
 DATA=data/cityscapes_like_bench

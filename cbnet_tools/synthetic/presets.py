@@ -3,7 +3,7 @@
 ``demo`` is what the comparison harness's older tables (docs/accuracy.md)
 were measured on (and what ``tools/demo.sh`` trained on until
 2026-11-26): 128x256 images, most objects COCO-small, where every recipe
-scores 1-5 AP. ``bench`` is the benchmark of issue 23, chosen by
+scores 1-5 AP. ``bench`` is the benchmark of the comparison tables, chosen by
 measurement (docs/accuracy.md, "The benchmark"): 256x512 images (a
 quarter of Cityscapes' side), objects from 48 px tall (nearer than about
 20 m) at half the demo's density, 200 train / 50 val images; the

@@ -1,6 +1,6 @@
 # The revised CBNet at paper size: the paper's CBNet-B5 recipe
 # (./cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py, unchanged, stays the
-# headline config) with the three changes the parts tables of issue 23
+# headline config) with the three changes the parts tables
 # chose on the generated benchmark (docs/accuracy.md "A CBNet that wins";
 # measured at demo size, MiT-B0 from scratch, not on Cityscapes):
 _base_ = './cbnet_mit-b5_nasfpn-crpn_8xb1-12e_cityscapes.py'

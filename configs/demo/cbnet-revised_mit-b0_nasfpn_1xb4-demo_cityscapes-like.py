@@ -1,4 +1,4 @@
-# The revised CBNet at demo size (issue 23, docs/accuracy.md "A CBNet that
+# The revised CBNet at demo size (docs/accuracy.md "A CBNet that
 # wins"): the demo CBNet (MiT with Mish + CSPE, NAS-FPN, the Cascade RPN,
 # stage IoUs .5/.7/.9, the boundary-aware mask loss) with the three changes
 # the parts tables chose, all in the parts set's row "CBNet +stage masks

@@ -1,11 +1,12 @@
-# What `bash tools/demo.sh` trains (issue 23, section 4): the demo CBNet
-# (the same model as cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py) on
-# the benchmark's data, `generate_cityscapes_like.py --preset bench`: 200
-# train / 50 val 256x512 images, objects from 48 px tall. The base's
-# Resize keeps its 256x128 scale, so it trains and tests at half the
-# images' side: a quarter of the benchmark's pixels per step, which is
-# what fits a demo of minutes on a 2-core CPU (the benchmark's own budget,
-# 600 steps at full size, takes 25-40 minutes on one core).
+# What `bash tools/demo.sh` trains (docs/accuracy.md "The demo on the benchmark
+# preset"): the demo CBNet (the same model as
+# cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py) on the benchmark's data,
+# `generate_cityscapes_like.py --preset bench`: 200 train / 50 val 256x512
+# images, objects from 48 px tall. The base's Resize keeps its 256x128 scale,
+# so it trains and tests at half the images' side: a quarter of the benchmark's
+# pixels per step, which is what fits a demo of minutes on a 2-core CPU (the
+# benchmark's own budget, 600 steps at full size, takes 25-40 minutes on one
+# core).
 _base_ = './cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py'
 
 data_root = 'data/cityscapes_like_bench/'

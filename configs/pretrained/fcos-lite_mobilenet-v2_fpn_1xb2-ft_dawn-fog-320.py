@@ -1,4 +1,4 @@
-# The edge model (issue 45, projects/edge_serving/README.md "The edge
+# The edge model (projects/edge_serving/README.md "The edge
 # model"): the light FCOS on the pretrained MobileNetV2 at half the
 # recipes' size, photos and frames resized to fit 320x240 (a 640x360
 # camera frame is read at 320x180), which is what brings one CPU thread

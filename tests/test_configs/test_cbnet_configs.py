@@ -101,7 +101,7 @@ def test_headline_config_is_the_papers_recipe():
     assert m.rpn_head.loss_giou.type == 'GIoULoss'
     assert m.rpn_head.loss_giou.loss_weight == 10
     # k = 1000 proposals per image in training; 300 kept at test time
-    # (issue 18: the paper's 1000 is one config value away)
+    # (the paper's 1000 is one config value away)
     assert m.train_cfg.rpn_proposal.max_per_img == 1000
     assert m.test_cfg.rpn.max_per_img == 300
     # cascade: 3 stages at IoU 0.5 / 0.7 / 0.9, class-agnostic smooth-L1

@@ -1,4 +1,4 @@
-"""The fog_transfer configs (issue 44): every row is its clear row plus one
+"""The fog_transfer configs: every row is its clear row plus one
 stated change (synthetic fog in the training pipeline, CBNet-DD's model
 and twin pipeline, the dark channel prior or the learned dehazer at test
 time on the clear row's weights), tested also on DAWN's val split; each

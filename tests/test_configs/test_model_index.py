@@ -1,4 +1,4 @@
-"""model-index.yml and the metafiles (issue 14), read as mim and MMEngine
+"""model-index.yml and the metafiles, read as mim and MMEngine
 read them."""
 import glob
 import json

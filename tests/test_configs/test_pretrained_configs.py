@@ -1,7 +1,7 @@
-"""configs/pretrained (issue 42): four recipes on one ImageNet MobileNetV2
+"""configs/pretrained: four recipes on one ImageNet MobileNetV2
 at equal widths, data and budget, each on real masks (COCO street) and
 box-only on real fog (DAWN), plus YOLOX-Tiny, the dark channel prior in
-front of the stock cascade and the light edge detector (issue 45); every
+front of the stock cascade and the light edge detector; every
 one builds with no weights file."""
 import glob
 import os

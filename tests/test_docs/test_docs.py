@@ -1,4 +1,4 @@
-"""The docs' own commands, snippets and file references (issue 26).
+"""The docs' own commands, snippets and file references.
 
 * every repository file a doc cites (in backticks or as a link) exists in
   the repository: no doc points outside it or at a file we do not ship;

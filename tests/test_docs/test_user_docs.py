@@ -6,6 +6,8 @@
 * no page a user reads (README, docs/*.md, projects/*/README.md) carries
   the development history's issue numbers or the development machines'
   paths;
+* no tracked text file of the repository (code, configs, tests, shell
+  scripts, every markdown file) carries an issue number either;
 * every relative link of those pages reaches an existing file and, where
   it names one, an existing heading of a markdown file (GitHub's anchor of
   the heading);
@@ -19,9 +21,11 @@
 """
 import glob
 import json
+import os
 import os.path as osp
 import re
 import statistics
+import subprocess
 
 import pytest
 from record_helpers import seed_values
@@ -35,6 +39,18 @@ ISSUE_REF = re.compile(r'\bissues? \d+|(?<![\w#/&])#\d+\b', flags=re.I)
 ISSUE_ANCHOR = re.compile(r'-issue-\d+\b', flags=re.I)
 #: Paths of the machines the project is developed on.
 DEV_PATH = re.compile(r'/work/|\.\./shared\b|\bshared/data\b')
+#: An issue in code, configs and scripts, where ``#1`` is a list marker or a
+#: comment and ``#000000`` a colour: ``issue 42``, ``issues #23``.
+CODE_ISSUE_REF = re.compile(r'\bissues? #?\d+', flags=re.I)
+#: The text files of the repository that the issue check reads (JSON
+#: records are data, not prose).
+TEXT_SUFFIXES = ('.py', '.sh', '.md', '.yml', '.yaml', '.cfg', '.toml',
+                 '.txt')
+#: Folders a walk of the tree skips where git cannot list the files.
+UNTRACKED_DIRS = frozenset(
+    {'.git', '.venv', 'work_dirs', 'data', '__pycache__'})
+#: This file, whose checks quote what they forbid.
+THIS_FILE = osp.abspath(__file__)
 #: ``[text](target)`` of a markdown link or image.
 LINK = re.compile(r'\]\(([^)\s]+)\)')
 FENCE = re.compile(r'^(```|~~~).*?^\1', flags=re.S | re.M)
@@ -104,17 +120,81 @@ def broken_links(path, root=ROOT):
     return bad
 
 
+def _issues_in_line(line, markdown=True):
+    """The issue references of one line: in markdown, :data:`ISSUE_REF`
+    outside link targets and :data:`ISSUE_ANCHOR`; elsewhere
+    :data:`CODE_ISSUE_REF` and :data:`ISSUE_ANCHOR`."""
+    if markdown:
+        # a link's target is a file or an anchor (``](#3-seeds)``), not
+        # prose: only a stale issue anchor or a machine path counts there
+        refs = ISSUE_REF.finditer(LINK.sub('](link)', line))
+    else:
+        refs = CODE_ISSUE_REF.finditer(line)
+    return [m.group(0) for m in refs] + \
+        [m.group(0) for m in ISSUE_ANCHOR.finditer(line)]
+
+
 def forbidden_mentions(text):
     """(line number, text) of each issue reference or development-machine
     path outside link targets' anchors."""
     out = []
     for number, line in enumerate(text.splitlines(), 1):
-        # a link's target is a file or an anchor (``](#3-seeds)``), not
-        # prose: only a stale issue anchor or a machine path counts there
-        prose = LINK.sub('](link)', line)
-        out += [(number, m.group(0)) for m in ISSUE_REF.finditer(prose)]
-        out += [(number, m.group(0)) for m in ISSUE_ANCHOR.finditer(line)]
+        out += [(number, m) for m in _issues_in_line(line)]
         out += [(number, m.group(0)) for m in DEV_PATH.finditer(line)]
+    return out
+
+
+def issue_mentions(text, markdown=True):
+    """(line number, text) of each issue reference of a file's text (the
+    markdown check of :func:`forbidden_mentions` less the machine paths,
+    or the code check where ``markdown`` is false)."""
+    return [(number, m)
+            for number, line in enumerate(text.splitlines(), 1)
+            for m in _issues_in_line(line, markdown)]
+
+
+def _walk_text_files(root):
+    """The text files under ``root`` (relative paths), the folders of
+    :data:`UNTRACKED_DIRS` skipped."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if d not in UNTRACKED_DIRS)
+        out += [
+            _rel(osp.join(dirpath, name), root) for name in sorted(filenames)
+        ]
+    return out
+
+
+def repository_text_files(root=ROOT):
+    """Every text file of the repository as a path: what ``git ls-files``
+    lists (the whole tree, :data:`UNTRACKED_DIRS` skipped, where git is
+    missing or lists nothing) with a suffix of :data:`TEXT_SUFFIXES`;
+    links (their targets are listed themselves) and files that are not
+    UTF-8 text are left out."""
+    try:
+        listed = subprocess.run(['git', 'ls-files', '-z'],
+                                cwd=root,
+                                capture_output=True,
+                                check=True).stdout.decode('utf-8')
+        paths = [p for p in listed.split('\0') if p]
+    except (OSError, subprocess.CalledProcessError):
+        paths = []
+    if not paths:
+        paths = _walk_text_files(root)
+    out = []
+    for path in sorted(paths):
+        full = osp.join(root, path)
+        if not path.endswith(TEXT_SUFFIXES) or osp.islink(full) or \
+                not osp.isfile(full):
+            continue
+        with open(full, 'rb') as f:
+            data = f.read()
+        try:
+            if b'\0' not in data:
+                data.decode('utf-8')
+                out.append(full)
+        except UnicodeDecodeError:
+            pass
     return out
 
 
@@ -142,6 +222,54 @@ def test_no_issue_numbers_or_machine_paths(page):
     found = forbidden_mentions(_read(page))
     assert not found, (f'{_rel(page)} names the development history or '
                        f'machines (line, text): {found}')
+
+
+def test_no_issue_numbers_in_any_text_file():
+    """Code, configs, tests, shell scripts and every markdown file name no
+    issue of the development history either (this file aside: its checks
+    quote what they forbid)."""
+    files = repository_text_files()
+    assert osp.join(ROOT, 'README.md') in files, files[:5]
+    found = {}
+    for path in files:
+        if path == THIS_FILE:
+            continue
+        mentions = issue_mentions(_read(path), markdown=path.endswith('.md'))
+        if mentions:
+            found[_rel(path)] = mentions
+    assert not found, ('files that name issues of the development history '
+                       f'(file: [(line, text)]): {found}')
+
+
+def test_the_issue_checks_of_code_spare_code(tmp_path):
+    """In code the check finds issue numbers and issue anchors, not
+    colours, list markers or ``#1`` comments; markdown keeps its own
+    check; the walk of the tree skips virtual environments, data and work
+    folders, and the lister skips JSON records and binary files."""
+    code = ("color='#000000'  # 1) first\n"
+            "#1 list marker; x#2\n"
+            "# see issue 42 and Issues #7\n"
+            "url = 'docs/a.md#real-fog-issue-3'\n")
+    assert issue_mentions(code, markdown=False) == [(3, 'issue 42'),
+                                                    (3, 'Issues #7'),
+                                                    (4, '-issue-3')]
+    assert issue_mentions('a list (#23) and issue 5', markdown=True) == [
+        (1, '#23'), (1, 'issue 5')
+    ]
+    for folder in ('.venv', 'data', 'work_dirs', 'pkg'):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / 'a.py').write_text('# issue 1\n')
+    (tmp_path / 'pkg' / 'r.json').write_text('{"note": "issue 2"}')
+    (tmp_path / 'pkg' / 'b.txt').write_bytes(b'\x89PNG\0issue 3')
+    assert _walk_text_files(str(tmp_path)) == [
+        osp.join('pkg', 'a.py'),
+        osp.join('pkg', 'b.txt'),
+        osp.join('pkg', 'r.json')
+    ]
+    # not a git work tree, or one that tracks none of it: walked
+    assert repository_text_files(str(tmp_path)) == [
+        str(tmp_path / 'pkg' / 'a.py')
+    ]
 
 
 @pytest.mark.parametrize('page', user_pages(), ids=_rel)

@@ -1,4 +1,4 @@
-"""MMDetection's inference API on our configs (issue 14).
+"""MMDetection's inference API on our configs.
 
 ``DetInferencer`` (single image, folder, ``out_dir`` drawings),
 ``inference_detector`` (path and array) and the frame loop of MMDet's
@@ -106,7 +106,7 @@ def _assert_same(pred, ref):
 def test_inferencer_accepts_every_shipped_test_pipeline(path, demo):
     """DetInferencer finds the loader in every config and its pipeline
     turns an image path into model inputs. The loader reads through the
-    checking file backend and CBNetCheckImage follows it (issue 26:
+    checking file backend and CBNetCheckImage follows it (see
     tests/test_datasets/test_transforms/test_check_image.py)."""
     cfg = Config.fromfile(path)
     config_pipeline = cfg.test_dataloader.dataset.pipeline

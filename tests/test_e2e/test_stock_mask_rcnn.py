@@ -1,5 +1,5 @@
-"""One CBNet component in a stock MMDetection config changes nothing else
-(issue 43).
+"""One CBNet component in a stock MMDetection config changes nothing
+else.
 
 MMDetection's own ``mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py``, shrunk for a
 CPU (96x128 images, a backbone without pretrained weights, 3 epochs of one

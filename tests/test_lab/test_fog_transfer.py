@@ -1,4 +1,4 @@
-"""The fog_transfer set (issue 44) end to end on tiny files built here:
+"""The fog_transfer set end to end on tiny files built here:
 recipes trained on a tiny COCO-format clear set (through tools/
 dataset_converters/coco_street.py), each tested on its clear val and on a
 tiny VOC real-fog folder; the dehaze-then-detect rows (the dark channel

@@ -1,4 +1,4 @@
-"""The pretrained-trunk sets of issue 42 end to end on tiny fake data:
+"""The pretrained-trunk sets end to end on tiny fake data:
 ``coco_street`` (real masks: COCO json -> tools/dataset_converters/
 coco_street.py -> its recipes, mask AP / box AP / mIoU) and
 ``realfog_pretrained`` (a VOC folder, box AP / AP50 / AP_s/m/l), each

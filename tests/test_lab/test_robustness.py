@@ -1,4 +1,4 @@
-"""Corruption benchmark and fog-density sweep (issue 14).
+"""Corruption benchmark and fog-density sweep.
 
 mPC / rPC are checked against MMDetection's own
 ``tools/analysis_tools/robustness_eval.py`` (shipped in the mmdet wheel

@@ -413,7 +413,7 @@ def test_scaling_only_run_prints_no_empty_model_table(tmp_path):
     assert '| yolox_s | 32x32 |' in text
 
 
-# --suite edge (issue 45): the edge model next to the server models on
+# --suite edge: the edge model next to the server models on
 # camera frames each model gets resized as its test pipeline resizes them
 
 EDGE = 'edge_fcos-lite_320'

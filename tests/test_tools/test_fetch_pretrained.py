@@ -118,7 +118,7 @@ def test_key_map_covers_mmdets_mobilenet_v2_exactly(source):
     assert list(converted) == list(target)  # same keys, same order
     for key, value in converted.items():
         assert value.shape == target[key].shape, key
-    # the stages of the issue: features.i -> MMDet's module
+    # the stages: features.i -> MMDet's module
     modules = tw.mobilenet_v2_modules()
     assert modules[0] == 'conv1' and modules[18] == 'conv2'
     assert [modules[i] for i in (1, 2, 3, 4, 6, 7, 10, 11, 13, 14, 16, 17)] \

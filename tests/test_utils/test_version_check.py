@@ -39,7 +39,7 @@ def test_declared_ranges_come_from_installed_metadata():
     assert ranges['mmcv'].specifier.contains('2.1.0')
     assert not ranges['mmcv'].specifier.contains('2.2.0')
     # setuptools at run time: our configs' `mmdet::` bases need
-    # pkg_resources, which setuptools 81 removed (issue 26)
+    # pkg_resources, which setuptools 81 removed
     assert ranges['setuptools'].specifier.contains('80.10.2')
     assert not ranges['setuptools'].specifier.contains('81.0.0')
 

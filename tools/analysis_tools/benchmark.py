@@ -20,7 +20,7 @@ memory against ``--scale-sizes``, and training step time and memory
 against ``--scale-items`` ground-truth instances per image (RoI head and
 loss cost).
 
-``--suite edge`` (issue 45) measures the edge model next to the server
+``--suite edge`` measures the edge model next to the server
 models of the real-fog deployment as the edge device runs them: one torch
 thread, ``--size`` read as a camera frame (640x360) that each model gets
 resized as its config's test pipeline resizes it (``--config-resize``;
@@ -94,7 +94,7 @@ MODELS = {
     'faster-rcnn_x101-64x4d': 'configs/baselines/faster-rcnn_x101-64x4d_'
     'fpn_1x_cityscapes.py',
     'yolox_s': 'configs/baselines/yolox_s_8xb8-300e_cityscapes.py',
-    # issue 45: the edge model and the server models of the real-fog
+    # the edge model and the server models of the real-fog
     # deployment, all on the pretrained MobileNetV2 (configs/pretrained/)
     'edge_fcos-lite_320': 'configs/pretrained/fcos-lite_mobilenet-v2_fpn_'
     '1xb2-ft_dawn-fog-320.py',
@@ -109,7 +109,7 @@ MODELS = {
 #: ``--suite``: a named measurement, its settings as defaults (any option
 #: given on the command line still wins).
 SUITES = {
-    # issue 45, projects/edge_serving/README.md "The edge model": the edge
+    # projects/edge_serving/README.md "The edge model": the edge
     # model next to the server models like for like, as the edge device
     # runs them: one torch thread, 640x360 camera frames each resized by
     # its config's test pipeline (the edge model reads 320x180, the

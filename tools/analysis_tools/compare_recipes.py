@@ -20,7 +20,7 @@ projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
   ablation  the four rows of the paper's Table 3 (trained on foggy images)
   dehaze    CBNet on fog vs dehazer + detector (train the dehazer first:
             projects/peer_dehaze/README.md)
-  speed     the speed settings of issue 18: light neck, 3 / 7 stacks,
+  speed     the speed settings (docs/benchmarks.md): light neck, 3 / 7 stacks,
             1000 proposals at test (a test-time variant)
   rpn       CBNet's Cascade RPN vs RPNHead vs MMDet's CascadeRPNHead
   parts     what each part of CBNet is worth: MMDet's stock Cascade Mask

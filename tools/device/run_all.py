@@ -175,9 +175,9 @@ SETS = {
         dry_args=_dry_args(scale=(256, 128)),
         dry_needs=[],
         tiny=None),
-    # issue 44, the transfer experiment: trained on the clear COCO street
-    # photos (the coco_street folder as above), every run also tested on
-    # DAWN's real fog (``transfer``: a second carried folder, passed as
+    # the transfer experiment (fog_transfer set): trained on the clear COCO
+    # street photos (the coco_street folder as above), every run also tested
+    # on DAWN's real fog (``transfer``: a second carried folder, passed as
     # --transfer-root). Only DAWN's 65 val photos are tested, so --prepare
     # copies those and every XML (the seeded split reads the XMLs' names:
     # :data:`VAL_ONLY`), which keeps the call under 64 MiB. Its ceiling
@@ -196,7 +196,7 @@ SETS = {
         dry_needs=[],
         tiny=None,
         transfer_tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder'),
-    # issue 44 item 3, generated -> real: trained on the generated
+    # generated -> real: trained on the generated
     # benchmark (made on the device by ``make``: the generator is
     # deterministic, so nothing is carried but DAWN), tested on DAWN too
     'fog_generated_to_real': dict(

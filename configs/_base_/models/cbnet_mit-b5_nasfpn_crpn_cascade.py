@@ -39,7 +39,7 @@ model = dict(
         stack_times=7,  # NAS-FPN's published depth
         # merging cells on strides 8-128, the stride-4 output made FPN-style
         # (lateral + top-down + one 3x3 conv): the same five output levels
-        # at a third of the latency (docs/benchmarks.md, issue 18); 'cells'
+        # at a third of the latency (docs/benchmarks.md); 'cells'
         # runs the cell graph on strides 4-64 (our first reading)
         fine_path='light',
         norm_cfg=dict(type='BN', requires_grad=True)),
@@ -145,7 +145,7 @@ model = dict(
             # proposals kept at test time: 300, as in the demo. The paper's
             # k = 1000 (set 1000 for it) costs 2.5 s more per 512x1024 image
             # on CPU and scored less AP with the same weights on the
-            # harness (docs/accuracy.md, speed set; issue 18)
+            # harness (docs/accuracy.md, speed set)
             max_per_img=300,
             nms=dict(type='nms', iou_threshold=0.8),
             min_bbox_size=0),

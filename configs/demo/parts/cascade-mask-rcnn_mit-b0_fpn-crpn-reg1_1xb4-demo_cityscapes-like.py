@@ -1,4 +1,4 @@
-# parts set, diagnostic of the revised CBNet (issue 23): "stock +CRPN" with
+# parts set, diagnostic of the revised CBNet: "stock +CRPN" with
 # the Cascade RPN's regression losses weighted 1 instead of the paper's
 # lambda_IoU = lambda_GIoU = 10 (eq. (3)) — does the Cascade RPN help the
 # stock cascade once its losses no longer dominate the shared trunk?

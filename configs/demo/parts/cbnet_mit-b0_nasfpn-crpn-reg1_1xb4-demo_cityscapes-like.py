@@ -1,4 +1,4 @@
-# parts set, diagnostic of the revised CBNet (issue 23): the demo CBNet
+# parts set, diagnostic of the revised CBNet: the demo CBNet
 # with only the Cascade RPN's regression losses weighted 1 instead of the
 # paper's 10 (eq. (3)): what that change is worth without the head changes.
 _base_ = [

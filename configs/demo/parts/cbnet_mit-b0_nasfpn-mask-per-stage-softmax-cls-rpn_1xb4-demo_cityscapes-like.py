@@ -1,4 +1,4 @@
-# parts set, diagnostic row (issue 23): the revised CBNet's recipe ("CBNet
+# parts set, diagnostic row: the revised CBNet's recipe ("CBNet
 # +stage masks +softmax, CRPN reg 1", configs/demo/cbnet-revised_*) with
 # MMDet's RPNHead (and its training settings, NMS 0.7) in place of the
 # Cascade RPN: does the Cascade RPN earn its place in the revised recipe?

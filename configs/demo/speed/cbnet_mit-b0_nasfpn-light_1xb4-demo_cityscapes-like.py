@@ -1,4 +1,5 @@
-# The demo CBNet with the speed settings of the paper configs (issue 18):
+# The demo CBNet with the speed settings of the paper configs
+# (docs/benchmarks.md "What changed"):
 # NAS-FPN merging cells on strides 8-128 and an FPN-style stride-4 level
 # (`fine_path='light'`); stage 2 of the Cascade RPN computes its deformable
 # convolution with CBNetDeformConv2d (the head's default 'auto': its gather

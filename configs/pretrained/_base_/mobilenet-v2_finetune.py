@@ -1,4 +1,4 @@
-# The pretrained trunk of the configs/pretrained/ recipes (issue 42) and
+# The pretrained trunk of the configs/pretrained/ recipes and
 # the fine-tuning settings that go with it; keys prefixed `mnv2_` so that
 # this file can be a second base next to a full recipe.
 # ImageNet-1k MobileNetV2 1.0 as MMDet's own `MobileNetV2` (ReLU6, the

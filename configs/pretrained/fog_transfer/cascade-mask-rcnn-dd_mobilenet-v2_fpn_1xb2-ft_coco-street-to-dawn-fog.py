@@ -1,4 +1,4 @@
-# CBNet-DD on MMDet's stock Cascade Mask R-CNN (fog_transfer set, issue 44):
+# CBNet-DD on MMDet's stock Cascade Mask R-CNN (fog_transfer set):
 # the floor's model as the student, fed each clear photo's synthetic foggy twin
 # (CBNetAddFoggyTwin, beta uniform in 0.005-0.02 1/m, every image fogged), and
 # an EMA teacher fed the clear photo with the same resize and flip; their last-

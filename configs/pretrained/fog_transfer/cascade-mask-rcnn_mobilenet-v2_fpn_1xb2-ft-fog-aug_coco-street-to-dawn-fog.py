@@ -1,5 +1,5 @@
 # MMDet's stock Cascade Mask R-CNN, clear photos + synthetic fog augmentation
-# (fog_transfer set, issue 44): CBNetAddFog right after the loaders (the row
+# (fog_transfer set): CBNetAddFog right after the loaders (the row
 # prior sees the whole photo), beta uniform in 0.005-0.02 1/m on half of the
 # images (../_base_/datasets/fog-transfer.py); else the floor's recipe, data,
 # budget and tests.

@@ -1,5 +1,5 @@
 # MMDet's stock Cascade Mask R-CNN on the pretrained MobileNetV2, trained on
-# CLEAR photos only (the floor of the fog_transfer set, issue 44): the
+# CLEAR photos only (the floor of the fog_transfer set): the
 # coco_street set's recipe as it is, tested on COCO street val (clear) and on
 # DAWN's real fog val (boxes), see ../_base_/datasets/fog-transfer.py.
 _base_ = [

@@ -1,4 +1,4 @@
-# Generated -> real (issue 44 item 3, compare_recipes.py --set
+# Generated -> real (compare_recipes.py --set
 # fog_generated_to_real): MMDet's stock Cascade Mask R-CNN on the pretrained
 # MobileNetV2 (the fog_transfer rows' model), trained on the generated
 # Cityscapes-like scenes (clear), tested on their clear and depth-rendered

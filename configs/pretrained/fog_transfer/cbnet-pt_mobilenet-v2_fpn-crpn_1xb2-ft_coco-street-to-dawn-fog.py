@@ -1,7 +1,7 @@
 # CBNet-PT (CBNet for pretrained trunks: the revised CBNet with FPN in place
-# of NAS-FPN, the best CBNet recipe on real photographs, issue 42) on the
+# of NAS-FPN, the best CBNet recipe on real photographs) on the
 # pretrained MobileNetV2, trained on CLEAR photos only (the floor of the
-# fog_transfer set, issue 44): the coco_street set's recipe as it is,
+# fog_transfer set): the coco_street set's recipe as it is,
 # tested on COCO street val (clear) and on DAWN's real fog val (boxes), see
 # ../_base_/datasets/fog-transfer.py.
 _base_ = [

@@ -1,4 +1,4 @@
-# Generated -> real (issue 44 item 3): the same model trained on the generated
+# Generated -> real: the same model trained on the generated
 # scenes' depth-rendered fog (beta 0.02, Foggy Cityscapes' benchmark density,
 # as the ablation set trains), tested as the clear row: how far rendered fog is
 # from real fog.

@@ -1,4 +1,4 @@
-# Real-fog data for the box-only recipes of configs/realfog/ (issue 24): a
+# Real-fog data for the box-only recipes of configs/realfog/: a
 # VOC folder (DAWN's fog/haze photos, RTTS, or any folder with
 # Annotations/*.xml and JPEGImages/) read by CBNetVOCFogDataset as the 8
 # Cityscapes classes (motorbike -> motorcycle), split by the seeded split

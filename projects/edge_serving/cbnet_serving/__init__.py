@@ -1,4 +1,4 @@
-"""Edge-cloud serving of cbnet_mmdet detectors (issue 29), the package of
+"""Edge-cloud serving of cbnet_mmdet detectors, the package of
 the ``projects/edge_serving`` project.
 
 Nothing here is registered in MMDet's registries; the plugin never imports

@@ -1,4 +1,4 @@
-"""CBNetAddFog (issue 44): fog on a photograph without depth, from the
+"""CBNetAddFog: fog on a photograph without depth, from the
 atmospheric scattering model and a ground-plane row prior.
 
 References are computed here from the formula, pixel by pixel in float64

@@ -1,4 +1,4 @@
-"""CBNetAddFoggyTwin (issue 44): CBNet-DD's clear/foggy pair made on the
+"""CBNetAddFoggyTwin: CBNet-DD's clear/foggy pair made on the
 fly from a clear photograph, carried through the same crop, flip and
 resize, into CBNetPairedDataPreprocessor."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""Training checkpoints load without ``cbnet_mmdet`` imported (issue 26).
+"""Training checkpoints load without ``cbnet_mmdet`` imported.
 
 A runner with our configs' default hooks writes a checkpoint; a process
 that imports only what a user's would (``mmdet.apis``) reads it with

@@ -190,7 +190,7 @@ def diverge(train, work, loss_scale):
 
 def test_diverged_run_resumes_from_its_last_clean_checkpoint(tmp_path,
                                                              train):
-    """Issue 43: the checkpoints written after the weights went bad are
+    """The checkpoints written after the weights went bad are
     never resumed; a plain --resume falls back to the clean one, saying
     so, and the fixed run (no blow-up) trains on from there."""
     work = tmp_path / 'run'

@@ -1,4 +1,4 @@
-"""CBNet-DD on pairs made on the fly (issue 44): a clear-only dataset whose
+"""CBNet-DD on pairs made on the fly: a clear-only dataset whose
 pipeline adds each image's foggy twin (``CBNetAddFoggyTwin``) trains
 ``CBNetDistiller`` as the Foggy Cityscapes file pairs do."""
 import numpy as np

@@ -72,7 +72,8 @@ def test_built_from_act_cfg():
     from mmengine.registry import DefaultScope
 
     # in MMDetection's registry (a runner or init_detector sets its scope),
-    # not in MMEngine's root registry (issue 43)
+    # not in MMEngine's root registry (importing the plugin leaves it
+    # alone: tests/test_import_inert.py)
     assert 'CBNetMish' not in ROOT_MODELS.module_dict
     with DefaultScope.overwrite_default_scope('mmdet'):
         layer = build_activation_layer(dict(type='CBNetMish'))

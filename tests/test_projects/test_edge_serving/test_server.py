@@ -1,4 +1,4 @@
-"""The Ray Serve model server, end to end on 127.0.0.1 (issue 29).
+"""The Ray Serve model server, end to end on 127.0.0.1.
 
 One server (projects/edge_serving/tools/serve.py, the demo model with a
 seeded random checkpoint) serves the module; the reference for its answers

@@ -1,9 +1,9 @@
 """A checkpoint of another model is refused where the project loads it
-(issue 26; issue 43: not inside the models, so MMDetection's own API loads
-what fits, as MMEngine does for any model).
+(not inside the models, so MMDetection's own API loads what fits, as
+MMEngine does for any model).
 
 The demo model (MiT-B0) stands in for every CBNet config; "another size"
-is the same config with MiT-B1 (the B0-in-B5 case of the issue, smaller);
+is the same config with MiT-B1 (the B0-in-B5 case, smaller);
 a CBNet-DD checkpoint is the demo model's weights under ``student.`` and
 ``teacher.``, as ``CBNetDistiller`` writes them.
 """
@@ -65,7 +65,7 @@ def test_the_matching_checkpoint_loads(ckpts):
 
 
 def test_other_backbone_size_refused_by_the_projects_loader(ckpts):
-    # the B0 checkpoint in the B1 config (the issue: B0 in the B5 config)
+    # the B0 checkpoint in the B1 config (as B0 in the B5 config would be)
     with pytest.raises(CheckpointMismatchError) as err:
         init_checked_detector(ckpts['b1_cfg'], ckpts['b0'], device='cpu')
     message = str(err.value)

@@ -1,4 +1,4 @@
-"""publish_model.py and extract_student.py (issue 14)."""
+"""publish_model.py and extract_student.py."""
 import glob
 import hashlib
 import importlib.util

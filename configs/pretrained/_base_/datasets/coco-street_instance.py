@@ -1,4 +1,4 @@
-# Real street photographs with instance masks (issue 42): the COCO subset
+# Real street photographs with instance masks: the COCO subset
 # converted by tools/dataset_converters/coco_street.py (street classes
 # onto the project's 8, a seeded 70/30 split stratified by whether a photo
 # holds a street object; docs/accuracy.md "Real masks"). Keys prefixed

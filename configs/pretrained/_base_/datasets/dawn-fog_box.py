@@ -1,4 +1,4 @@
-# Real fog for the pretrained recipes (issue 42): the data of the realfog
+# Real fog for the pretrained recipes: the data of the realfog
 # set (configs/realfog/_base_/voc-fog_box.py: DAWN's fog and haze photos or
 # any VOC folder, read by CBNetVOCFogDataset as the 8 Cityscapes classes,
 # its seeded split: 30 % val, seed 0, the same 65 val photos; boxes only;

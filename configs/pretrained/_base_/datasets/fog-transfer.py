@@ -1,5 +1,5 @@
-# Does training with synthetic fog carry over to real fog? (issue 44,
-# compare_recipes.py --set fog_transfer, docs/robustness.md "Synthetic fog
+# Does training with synthetic fog carry over to real fog?
+# (compare_recipes.py --set fog_transfer, docs/robustness.md "Synthetic fog
 # to real fog"). A second base next to a coco_street recipe, keys prefixed
 # `transfer_`: the recipes train on the CLEAR COCO street photos
 # (coco-street_instance.py, with their masks: CBNet-DD distils mask logits)

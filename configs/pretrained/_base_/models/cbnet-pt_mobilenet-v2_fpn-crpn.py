@@ -1,4 +1,4 @@
-# CBNet for pretrained trunks, "CBNet-PT" (issue 42 item 5): the revised
+# CBNet for pretrained trunks, "CBNet-PT": the revised
 # CBNet (boundary-aware mask head on every stage, softmax, Cascade RPN with
 # regression weights 1, IoUs .5/.7/.9) with MMDet's FPN in place of the
 # NAS-FPN, on the pretrained MobileNetV2. On DAWN's real fog the NAS-FPN,

@@ -1,4 +1,4 @@
-# Dehaze-then-detect at TEST time only (fog_transfer set, issue 44): the dark
+# Dehaze-then-detect at TEST time only (fog_transfer set): the dark
 # channel prior (He et al., the peer's training-free dehazer) in front of
 # CBNet-PT trained on clear photos. Nothing is trained: compare_weights_of
 # names the floor's config, so the harness tests the floor's checkpoint of each
