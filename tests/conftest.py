@@ -8,6 +8,11 @@ Generated once per test session (about 2 s) into its own temporary folder
 (not pytest's ``tmp_path_factory``, whose old numbered folders a concurrent
 pytest run may delete), removed at the end of the session.
 
+``log_messages``: ``log_messages(logger=None, level=logging.DEBUG)``
+starts recording what an MMLogger (default: the current one) logs at
+``level`` and above, and returns the list of messages (detached at the
+end of the test).
+
 ``restore_environ``: puts ``os.environ`` back as it was after the test (for
 tests that run a tool's ``main``/``parse_args``, which export
 ``LOCAL_RANK`` as launchers expect).
@@ -82,6 +87,28 @@ def cityscapes_like_root():
             osp.join(root, 'annotations',
                      'instancesonly_filtered_gtFine_val.json'))
         yield root
+
+
+@pytest.fixture
+def log_messages():
+    """Record an MMLogger's messages (see the module docstring)."""
+    import logging
+
+    from mmengine.logging import MMLogger
+    attached = []
+
+    def attach(logger=None, level=logging.DEBUG):
+        logger = logger or MMLogger.get_current_instance()
+        seen = []
+        handler = logging.Handler(level)
+        handler.emit = lambda record: seen.append(record.getMessage())
+        logger.addHandler(handler)
+        attached.append((logger, handler))
+        return seen
+
+    yield attach
+    for logger, handler in attached:
+        logger.removeHandler(handler)
 
 
 @pytest.fixture

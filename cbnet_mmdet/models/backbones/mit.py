@@ -16,6 +16,7 @@ from torch import Tensor
 from torch.nn.modules.batchnorm import _BatchNorm
 
 from ..layers import CBNetMish  # noqa: F401  (registers 'CBNetMish')
+from ..utils import refuse_misfit
 from .mit_checkpoint import convert_mit_checkpoint
 from .mit_layers import MiTEncoderLayer
 
@@ -239,16 +240,32 @@ class CBNetMiT(BaseModule):
                     m.eval()
         return self
 
+    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
+                              strict, missing_keys, unexpected_keys,
+                              error_msgs) -> None:
+        """PyTorch's loading, after refusing a checkpoint that offers the
+        backbone some of its tensors but not all of them with their shapes
+        (a MiT of another size, another trunk;
+        :func:`~cbnet_mmdet.models.utils.refuse_misfit`), through any
+        loader. CSPE tables may be missing (the published SegFormer
+        weights have none): they keep their zero initialisation."""
+        refuse_misfit(self, state_dict, prefix, optional=('cspe.table', ))
+        super()._load_from_state_dict(state_dict, prefix, local_metadata,
+                                      strict, missing_keys, unexpected_keys,
+                                      error_msgs)
+
     def init_weights(self) -> None:
         """Load a MiT checkpoint or initialise like SegFormer.
 
         With ``init_cfg=dict(type='Pretrained', checkpoint=PATH)`` the
         checkpoint (official SegFormer or mmsegmentation layout, see
         :func:`convert_mit_checkpoint`) is loaded non-strictly; ignored,
-        missing (e.g. ``attn.cspe.table``) and unexpected keys are logged
-        as warnings by MMLogger. Without ``init_cfg``: truncated-normal
-        linear layers, fan-out normal convolutions, unit norms, zero CSPE
-        tables. Any other ``init_cfg`` goes to ``BaseModule``.
+        missing ``attn.cspe.table`` and unexpected keys are logged as
+        warnings by MMLogger; any other missing tensor, or one of another
+        shape (a MiT of another size), is a ``CheckpointMismatchError``.
+        Without ``init_cfg``: truncated-normal linear layers, fan-out
+        normal convolutions, unit norms, zero CSPE tables. Any other
+        ``init_cfg`` goes to ``BaseModule``.
         """
         logger = MMLogger.get_current_instance()
         cfg = self.init_cfg

@@ -11,7 +11,8 @@
   and the project's tools, reported after ``load_from``).
 
 ``CBNetRunner`` (``engine/runner/``) is where training and testing load
-through them; models do not know where their weights come from.
+through them. Whoever loads them, the CBNet trunk, neck and Cascade RPN
+refuse tensors that do not fit them (``models/utils/state_dict_fit.py``).
 Model-specific key maps stay with their model (the SegFormer MiT layout:
 ``models/backbones/mit_checkpoint.py``; the peer baseline's dehazer: its
 project).

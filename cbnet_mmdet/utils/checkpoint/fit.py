@@ -163,8 +163,16 @@ def init_checked_detector(config, checkpoint: str, device: str = 'cpu'):
     from .files import read_checkpoint, unwrap_state_dict
     from .safe_globals import mmengine_safe_globals
     state = unwrap_state_dict(read_checkpoint(checkpoint, mmap=True))
-    with mmengine_safe_globals():
-        model = init_detector(config, checkpoint, device=device)
+    try:
+        with mmengine_safe_globals():
+            model = init_detector(config, checkpoint, device=device)
+    except CheckpointMismatchError as err:
+        # a component refused its part (models/utils/state_dict_fit.py):
+        # say what of the whole model does not fit, naming the file
+        model = init_detector(config, None, device='cpu')
+        check_checkpoint_fits(model.state_dict(), state, checkpoint,
+                              type(model).__name__)
+        raise err
     check_checkpoint_fits(model.state_dict(), state, checkpoint,
                           type(model).__name__)
     return model

@@ -1,16 +1,15 @@
 """Pretrained loading of CBNetMiT from official and mmseg layouts."""
-import logging
 import re
 from collections import OrderedDict
 
 import pytest
 import torch
 from mmdet.registry import MODELS
-from mmengine.logging import MMLogger
 
 import cbnet_mmdet  # noqa: F401
 from cbnet_mmdet.models.backbones import convert_mit_checkpoint
 from cbnet_mmdet.models.backbones.mit_checkpoint import detect_mit_layout
+from cbnet_mmdet.utils.checkpoint.fit import CheckpointMismatchError
 
 TINY = dict(
     embed_dims=[8, 16, 24, 32],
@@ -60,14 +59,8 @@ def to_official(state_dict):
 
 
 @pytest.fixture
-def log_records():
-    logger = MMLogger.get_current_instance()
-    records = []
-    handler = logging.Handler()
-    handler.emit = lambda r: records.append(r.getMessage())
-    logger.addHandler(handler)
-    yield records
-    logger.removeHandler(handler)
+def log_records(log_messages):
+    return log_messages()
 
 
 def build_from(path, **kwargs):
@@ -128,18 +121,23 @@ def test_official_and_mmseg_layouts_load_identically(source, tmp_path,
     assert 'decode_head.conv_seg.weight' in mmseg_log
 
 
-def test_unexpected_and_mismatched_keys_are_logged(source, tmp_path,
+def test_unexpected_keys_logged_mismatched_refused(source, tmp_path,
                                                    log_records):
     sd = source.state_dict()
     sd['layers.0.1.0.attn.extra'] = torch.zeros(1)
-    sd['layers.3.2.weight'] = torch.zeros(5)  # wrong shape
     torch.save(dict(model=sd), tmp_path / 'ckpt.pth')
     model = build_from(tmp_path / 'ckpt.pth', pos_encoding='ope')
     text = '\n'.join(log_records)
     assert 'unexpected key' in text and 'layers.0.1.0.attn.extra' in text
-    assert 'size mismatch' in text and 'layers.3.2.weight' in text
     assert torch.equal(model.layers[0][0].projection.weight,
                        sd['layers.0.0.projection.weight'])
+    # a tensor of another shape (another MiT size) is not skipped
+    sd['layers.3.2.weight'] = torch.zeros(5)
+    torch.save(dict(model=sd), tmp_path / 'bad.pth')
+    with pytest.raises(CheckpointMismatchError,
+                       match=r'(?s)other shape \(1\): layers.3.2.weight: '
+                       r'checkpoint \(5,\) vs model \(32,\)'):
+        build_from(tmp_path / 'bad.pth', pos_encoding='ope')
 
 
 def test_convert_strips_module_prefix_and_rejects_non_mit():

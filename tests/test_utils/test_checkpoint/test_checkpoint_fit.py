@@ -1,6 +1,10 @@
 """A checkpoint of another model is refused where the project loads it
-(not inside the models, so MMDetection's own API loads what fits, as
-MMEngine does for any model).
+(the whole model: every tensor must fit) and, through MMDetection's own
+API too, by the CBNet components it offers tensors that do not fit them
+(tests/test_models/test_utils/test_state_dict_fit.py); another number of
+classes in the RoI heads still loads for fine-tuning, and a CBNet-DD
+checkpoint, which offers them none of their names, is refused by the
+project's loaders only.
 
 The demo model (MiT-B0) stands in for every CBNet config; "another size"
 is the same config with MiT-B1 (the B0-in-B5 case, smaller);
@@ -76,23 +80,27 @@ def test_other_backbone_size_refused_by_the_projects_loader(ckpts):
     assert 'use the config the checkpoint was trained with' in message
 
 
-def test_mmdet_init_detector_loads_what_fits(ckpts):
-    """MMDetection's own API: MMEngine's non-strict loading, the models
-    do not refuse (docs/inference.md says so)."""
-    model = init_detector(ckpts['b1_cfg'], ckpts['b0'], device='cpu')
-    saved = read_checkpoint(ckpts['b0'])['state_dict']
-    key = 'backbone.layers.0.0.projection.weight'
-    assert model.state_dict()[key].shape != saved[key].shape
-    rpn = [k for k in saved if k.startswith('rpn_head.')]
-    assert rpn and all(torch.equal(model.state_dict()[k], saved[k])
-                       for k in rpn)
+def test_mmdet_init_detector_refuses_another_backbone_size(ckpts):
+    """MMDetection's own API: MMEngine's non-strict loading would skip the
+    backbone tensors that do not fit; CBNetMiT refuses them itself."""
+    with pytest.raises(CheckpointMismatchError) as err:
+        init_detector(ckpts['b1_cfg'], ckpts['b0'], device='cpu')
+    message = str(err.value)
+    assert message.startswith('the checkpoint does not fit CBNetMiT at '
+                              '`backbone`: ')
+    assert 'layers.0.0.projection.weight: checkpoint (32,' in message
+    with pytest.raises(CheckpointMismatchError, match='CBNetMiT'):
+        DetInferencer(model=ckpts['b1_cfg'], weights=ckpts['b0'],
+                      device='cpu', show_progress=False)
 
 
 def test_distiller_checkpoint_refused_with_extract_hint(ckpts):
     with pytest.raises(CheckpointMismatchError,
                        match='extract_student.py'):
         init_checked_detector(ckpts['cfg'], ckpts['dd'], device='cpu')
-    # MMDetection's inferencer loads nothing of it, with MMEngine's warning
+    # MMDetection's inferencer loads nothing of it, with MMEngine's warning:
+    # the components are offered none of their own names, which they
+    # cannot tell from a partial checkpoint
     inferencer = DetInferencer(model=ckpts['cfg'], weights=ckpts['dd'],
                                device='cpu', show_progress=False)
     key = 'backbone.layers.0.0.projection.weight'
