@@ -2,14 +2,17 @@
 happened and which checkpoint is clean."""
 import math
 import os.path as osp
+import random
 import statistics
 from collections import deque
 from typing import Deque, Dict, List, Optional, Sequence, Tuple
 
+import numpy as np
 import torch
 from mmdet.registry import HOOKS
 from mmengine.hooks import Hook
 from mmengine.model import is_model_wrapper
+from mmengine.registry import MODELS
 from mmengine.runner import Runner
 
 from cbnet_mmdet.utils.checkpoint.files import (DIVERGENCE_RECORD,
@@ -102,7 +105,20 @@ class CBNetNonFiniteLossHook(Hook):
     * the parameters' total norm (every ``param_interval``) above
       ``blowup_factor`` times its value when training started.
 
-    A ``DivergenceError`` (a ``FloatingPointError``) is raised then. The
+    A ``DivergenceError`` (a ``FloatingPointError``) is raised then. A
+    loss or gradient norm above ``warn_factor`` times the running median
+    (a rise the stop does not catch yet, e.g. an lr far too high) is
+    logged once per run as a warning.
+
+    A run that starts from weights (``load_from``, not ``--resume``) is
+    also judged against a freshly initialised model of its config
+    (``start_factor``): at the first iteration the same batch goes
+    through a fresh model (built from ``runner.cfg.model``, its
+    ``init_weights()``, no gradients, the random state left as it was);
+    a first loss above ``start_factor`` times the fresh model's is a
+    ``DivergenceError`` naming the checkpoint (the weights are not sound,
+    e.g. written after another run diverged), and both losses are logged
+    either way. It costs one model build and one forward pass, once. The
     error names the iteration (1-based, as in the log), the epoch and
     batch index, the offending values, the images of the batch and the
     last checkpoint of the work dir that is really clean, e.g.::
@@ -151,6 +167,12 @@ class CBNetNonFiniteLossHook(Hook):
             (the look-back for the clean checkpoint covers them). Defaults
             to 1: from the second iteration on, a loss 100 x the first is
             caught before the median takes the blow-up in.
+        warn_factor (float): A loss or gradient norm above this many
+            times the running median is logged as a warning (once per run
+            and value); 0 disables it. Defaults to 10.
+        start_factor (float): After ``load_from``, how many times a fresh
+            model's loss the first loss may reach; 0 disables the check.
+            Defaults to 100.
     """
 
     priority = 'ABOVE_NORMAL'
@@ -159,7 +181,9 @@ class CBNetNonFiniteLossHook(Hook):
                  param_interval: int = 50,
                  blowup_factor: float = 100.,
                  window: int = 50,
-                 min_history: int = 1) -> None:
+                 min_history: int = 1,
+                 warn_factor: float = 10.,
+                 start_factor: float = 100.) -> None:
         if not isinstance(param_interval, int) or param_interval < 0:
             raise ValueError('CBNetNonFiniteLossHook: param_interval must '
                              f'be an int >= 0, got {param_interval!r}')
@@ -167,6 +191,12 @@ class CBNetNonFiniteLossHook(Hook):
                 blowup_factor == 0 or blowup_factor > 1):
             raise ValueError('CBNetNonFiniteLossHook: blowup_factor must '
                              f'be 0 (off) or > 1, got {blowup_factor!r}')
+        for name, value in (('warn_factor', warn_factor),
+                            ('start_factor', start_factor)):
+            if not isinstance(value, (int, float)) or not (value == 0
+                                                           or value > 1):
+                raise ValueError(f'CBNetNonFiniteLossHook: {name} must be '
+                                 f'0 (off) or > 1, got {value!r}')
         for name, value in (('window', window), ('min_history',
                                                  min_history)):
             if not isinstance(value, int) or value < 1:
@@ -176,6 +206,10 @@ class CBNetNonFiniteLossHook(Hook):
         self.blowup_factor = float(blowup_factor)
         self.window = window
         self.min_history = min_history
+        self.warn_factor = float(warn_factor)
+        self.start_factor = float(start_factor)
+        self.warned: set = set()  # keys whose rise was logged
+        self._start_from: Optional[str] = None  # load_from to judge
         self.history: Dict[str, Deque[Tuple[int, float]]] = {}
         self.first_param_norm: Optional[float] = None
         self.last_params_ok = 0  # iterations done when last found finite
@@ -226,6 +260,10 @@ class CBNetNonFiniteLossHook(Hook):
                 'no state of this check (written without it): divergence '
                 'is judged from this run\'s first iterations')
         self._loaded = None
+        load_from = getattr(runner, '_load_from', None)
+        self._start_from = (load_from if self.start_factor
+                            and runner.iter == 0
+                            and isinstance(load_from, str) else None)
         if self.first_param_norm is None:
             norm = self.parameter_check(runner.model)[1]
             if math.isfinite(norm):
@@ -304,6 +342,20 @@ class CBNetNonFiniteLossHook(Hook):
                 batch_idx: int, data_batch: Optional[dict]) -> None:
         """Add a value to its history; raise when it blew up."""
         history = self.history.setdefault(key, deque(maxlen=self.window))
+        if (self.warn_factor and key not in self.warned
+                and len(history) >= self.min_history):
+            median = statistics.median(v for _, v in history)
+            if median > 0 and self.warn_factor * median < value <= (
+                    self.blowup_factor or math.inf) * median:
+                self.warned.add(key)
+                stops = (f'training stops at {self.blowup_factor:g} x'
+                         if self.blowup_factor else 'the stop is off')
+                runner.logger.warning(
+                    f'CBNetNonFiniteLossHook: {key} rose to {value:.4g} at '
+                    f'{self._where(runner, batch_idx)}, '
+                    f'{value / median:.3g} x the median {median:.4g} of the '
+                    f'last {len(history)} iterations; {stops}. Lower the '
+                    f'lr if it keeps rising (logged once per run).')
         if self.blowup_factor and len(history) >= self.min_history:
             median = statistics.median(v for _, v in history)
             if median > 0 and value > self.blowup_factor * median:
@@ -338,11 +390,80 @@ class CBNetNonFiniteLossHook(Hook):
                 runner, FloatingPointError,
                 f'non-finite loss at {self._where(runner, batch_idx)}: '
                 f'{listed}{self._images(data_batch)}.', it)
-        for key, value in self._running_values(runner, outputs):
+        values = self._running_values(runner, outputs)
+        if self._start_from is not None:
+            load_from, self._start_from = self._start_from, None
+            first = dict(values).get('loss')
+            if first is not None:
+                self._check_start(runner, load_from, first, data_batch)
+        for key, value in values:
             self._record(key, it, value, runner, batch_idx, data_batch)
         if self.param_interval and self.every_n_train_iters(
                 runner, self.param_interval):
             self._check_parameters(runner, it, batch_idx, data_batch)
+
+    @staticmethod
+    def fresh_loss(runner: Runner, data_batch: Optional[dict]) -> float:
+        """The total loss of a freshly initialised model of the runner's
+        config on ``data_batch`` (no gradients; the random state of
+        ``random``, NumPy and torch, CUDA included, is left as it was).
+
+        Raises:
+            ValueError: the runner has no model config (it was given a
+                model object).
+        """
+        cfg = getattr(runner, 'cfg', None)
+        model_cfg = cfg.get('model') if cfg is not None else None
+        if not isinstance(model_cfg, dict):
+            raise ValueError('the runner was built from a model object, '
+                             'not a config')
+        model = runner.model.module if is_model_wrapper(
+            runner.model) else runner.model
+        device = next(model.parameters()).device
+        py_state, np_state = random.getstate(), np.random.get_state()
+        cuda = ([torch.cuda.current_device()] if device.type == 'cuda'
+                else [])
+        try:
+            with torch.random.fork_rng(devices=cuda):
+                fresh = MODELS.build(model_cfg)
+                fresh.init_weights()
+                fresh.to(device).train()
+                with torch.no_grad():
+                    data = fresh.data_preprocessor(data_batch, True)
+                    losses = fresh._run_forward(data, mode='loss')
+                    loss = fresh.parse_losses(losses)[0]
+        finally:
+            random.setstate(py_state)
+            np.random.set_state(np_state)
+        return float(loss)
+
+    def _check_start(self, runner: Runner, load_from: str, first: float,
+                     data_batch: Optional[dict]) -> None:
+        """Judge the first loss after ``load_from`` against a fresh
+        model's (see the class docstring)."""
+        try:
+            fresh = self.fresh_loss(runner, data_batch)
+        except Exception as err:  # the check must not stop a sound run
+            runner.logger.warning(
+                f'CBNetNonFiniteLossHook: the start from {load_from} was '
+                f'not compared with a fresh model ({type(err).__name__}: '
+                f'{err})')
+            return
+        runner.logger.info(
+            f'CBNetNonFiniteLossHook: first loss {first:.4g} from the '
+            f'weights of {load_from}; a fresh model of this config: '
+            f'{fresh:.4g} on the same batch')
+        if math.isfinite(fresh) and fresh > 0 and \
+                first > self.start_factor * fresh:
+            raise DivergenceError(
+                f'the first loss {first:.4g} is more than '
+                f'{self.start_factor:g} x the loss {fresh:.4g} of a freshly '
+                f'initialised model of this config on the same batch: the '
+                f'weights of load_from {load_from} are not sound (written '
+                f'after a run diverged?). The weights of this step were not '
+                f'saved. Start from another checkpoint or from scratch '
+                f'(CBNetNonFiniteLossHook(start_factor=0) trains from them '
+                f'anyway).')
 
     def _running_values(self, runner: Runner,
                         outputs: dict) -> List[Tuple[str, float]]:

@@ -2,6 +2,7 @@
 loop; its state across a resume (the runner's side: test_cbnet_runner.py)."""
 import hashlib
 import json
+import logging
 import math
 import re
 from unittest.mock import MagicMock
@@ -230,3 +231,97 @@ def test_resume_from_a_checkpoint_without_state_warns():
     hook.before_train(runner)
     assert 'holds no state of this check' in \
         runner.logger.warning.call_args[0][0]
+
+
+def test_a_steep_rise_below_the_stop_is_a_warning(tmp_path, log_messages):
+    """An lr far too high: the loss 50 x its median, not yet 100 x."""
+    runner = toy_runner(
+        tmp_path, dict(type='CBNetNonFiniteLossHook', min_history=2),
+        max_iters=5, it3=50, it5=30)
+    seen = log_messages(runner.logger, logging.WARNING)
+    runner.train()  # not stopped
+    rises = [w for w in seen if 'rose to' in w]
+    assert len(rises) == 1, seen  # once per run
+    assert re.search(r'loss rose to \S+ at iteration 3 \(epoch 1, batch 2\)'
+                     r', \S+ x the median \S+ of the last 2 iterations; '
+                     r'training stops at 100 x', rises[0]), rises[0]
+    ratio = float(re.search(r', (\S+) x the median', rises[0])[1])
+    assert 10 < ratio < 100
+
+
+def test_warn_factor_off_and_checked(tmp_path, log_messages):
+    runner = toy_runner(
+        tmp_path, dict(type='CBNetNonFiniteLossHook', warn_factor=0),
+        max_iters=4, it3=50)
+    seen = log_messages(runner.logger, logging.WARNING)
+    runner.train()
+    assert not [w for w in seen if 'rose to' in w]
+    for bad in (dict(warn_factor=1), dict(start_factor=-1),
+                dict(start_factor='x')):
+        with pytest.raises(ValueError, match=list(bad)[0]):
+            CBNetNonFiniteLossHook(**bad)
+
+
+def load_from_runner(tmp_path, weight, **hook):
+    """tools/train.py's runner (CBNetRunner from a config) starting from a
+    checkpoint of the toy model whose weights are all ``weight``."""
+    from mmengine.config import Config
+    from mmengine.registry import RUNNERS
+    from helper_hooks import toy_config
+    ckpt = tmp_path / 'start.pth'
+    torch.save(dict(state_dict={'fc.weight': torch.full((1, 2), weight),
+                                'fc.bias': torch.full((1, ), weight)},
+                    meta={}), ckpt)
+    cfg = Config.fromfile(toy_config(
+        str(tmp_path / 'work'), max_iters=2,
+        custom_hooks=[dict(type='CBNetNonFiniteLossHook', **hook)]))
+    cfg.work_dir = str(tmp_path / 'work')
+    cfg.load_from = str(ckpt)
+    return RUNNERS.build(cfg), str(ckpt)
+
+
+def test_unsound_load_from_weights_stop_at_the_first_iteration(tmp_path):
+    """Weights written after a run diverged, with no record of it (another
+    machine): the first loss is ~1e12 x a fresh model's."""
+    runner, ckpt = load_from_runner(tmp_path, 1e6)
+    with pytest.raises(FloatingPointError) as err:
+        runner.train()
+    assert type(err.value).__name__ == 'DivergenceError'
+    assert re.match(r'the first loss \S+ is more than 100 x the loss \S+ of '
+                    r'a freshly initialised model of this config on the same '
+                    rf'batch: the weights of load_from {re.escape(ckpt)} are '
+                    r'not sound', str(err.value)), str(err.value)
+    assert not list((tmp_path / 'work').glob('iter_*.pth'))
+
+
+def test_sound_load_from_weights_train_and_both_losses_are_logged(
+        tmp_path, log_messages):
+    runner, ckpt = load_from_runner(tmp_path, 0.4)  # loss 0.04, fresh ~1
+    infos = log_messages(runner.logger)
+    runner.train()
+    start = [m for m in infos if 'a fresh model of this config' in m]
+    assert len(start) == 1
+    assert re.search(rf'first loss 0.04 from the weights of '
+                     rf'{re.escape(ckpt)}; a fresh model of this config: '
+                     r'\S+ on the same batch', start[0]), start[0]
+    # off: no fresh model at all
+    (tmp_path / 'off').mkdir()
+    runner, _ = load_from_runner(tmp_path / 'off', 1e6, start_factor=0)
+    runner.train()
+
+
+def test_fresh_loss_leaves_the_random_state_alone(tmp_path):
+    import random
+    import numpy as np
+    runner, _ = load_from_runner(tmp_path, 0.4)
+    states = (random.getstate(), np.random.get_state()[1].copy(),
+              torch.get_rng_state().clone())
+    loss = CBNetNonFiniteLossHook.fresh_loss(
+        runner, dict(inputs=[torch.ones(2)]))
+    # the toy model: ((w . [1, 1] + b) - 1)^2 of a fresh nn.Linear(2, 1)
+    assert loss >= 0 and math.isfinite(loss)
+    assert random.getstate() == states[0]
+    assert (np.random.get_state()[1] == states[1]).all()
+    assert torch.equal(torch.get_rng_state(), states[2])
+    with pytest.raises(ValueError, match='model object'):
+        CBNetNonFiniteLossHook.fresh_loss(mock_runner(), None)
