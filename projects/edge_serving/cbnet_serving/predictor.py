@@ -7,14 +7,33 @@ ndarray loader, ``LoadAnnotations`` dropped), and its ``pred2dict`` output
 (``labels``, ``scores``, ``bboxes`` in x1y1x2y2 pixels of the input image,
 ``masks`` as pycocotools RLE with ``counts`` as str).
 """
+import logging
 import os.path as osp
 from typing import Dict, List, Optional
 
 import numpy as np
 from mmdet.apis import DetInferencer
 from mmdet.registry import DATASETS
+from mmengine.logging import MMLogger
 
 import cbnet_mmdet  # noqa: F401  (registers the CBNet modules)
+
+
+#: What MMEngine logs when MMDetection's inferencer builds its collate
+#: function, with any MMDet config (its own demos too): mmdet has no
+#: "function" registry, so MMEngine's own is searched and gives
+#: ``pseudo_collate``, which is what the inferencer wants. Harmless, and
+#: in a server's log it reads like a failure; dropped while the server
+#: builds its inferencer, nothing else is.
+COLLATE_NOTICE = ('Failed to search registry with scope "mmdet" in the '
+                  '"function" registry tree')
+
+
+class _DropCollateNotice(logging.Filter):
+    """Drops :data:`COLLATE_NOTICE`, passes every other record."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return COLLATE_NOTICE not in record.getMessage()
 
 
 class Predictor:
@@ -39,9 +58,15 @@ class Predictor:
         self.config = config
         self.checkpoint = checkpoint
         self.device = device
-        self.inferencer = DetInferencer(
-            model=config, weights=checkpoint, device=device,
-            show_progress=False)
+        logger = MMLogger.get_current_instance()
+        notice = _DropCollateNotice()
+        logger.addFilter(notice)
+        try:
+            self.inferencer = DetInferencer(
+                model=config, weights=checkpoint, device=device,
+                show_progress=False)
+        finally:
+            logger.removeFilter(notice)
         if checkpoint is None:
             # DetInferencer falls back to COCO's classes without weights;
             # the config's test dataset names the classes instead

@@ -147,7 +147,7 @@ def run_local(config: str,
               num_cpus: Optional[int] = None,
               **kwargs) -> None:
     """Start a one-machine Ray, serve the detector, block until SIGINT or
-    SIGTERM, then shut Ray down."""
+    SIGTERM, then delete the app and shut that Ray down."""
     env = {'OMP_NUM_THREADS': os.environ.get('OMP_NUM_THREADS', '1'),
            'PYTHONPATH': worker_pythonpath()}
     ray.init(num_cpus=num_cpus, include_dashboard=False,
@@ -155,14 +155,19 @@ def run_local(config: str,
     serve.start(http_options=dict(host=host, port=port))
     serve.run(build_app(config, checkpoint, **kwargs), name='detector',
               route_prefix='/')
-    print(f'serving {config} on http://{host}:{port} '
-          '(POST /predict, GET /health, GET /info)', flush=True)
     stop = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.append(1))
+    print(f'serving {config} on http://{host}:{port} '
+          '(POST /predict, GET /health, GET /info)', flush=True)
     try:
         while not stop:
             time.sleep(0.2)
     finally:
-        serve.shutdown()
+        # drain the app (requests in flight finish), then end the Ray this
+        # function started, Serve's actors with it. serve.shutdown() would
+        # first ask the controller to stop itself; Ray then reports that
+        # call as failed ("Task ServeController.graceful_shutdown failed
+        # ... killed by `ray.kill`") on every clean stop.
+        serve.delete('detector')
         ray.shutdown()

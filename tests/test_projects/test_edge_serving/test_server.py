@@ -58,17 +58,19 @@ def demo_ckpt(tmp_path_factory):
     return ckpt
 
 
-@pytest.fixture(scope='module')
-def server(demo_ckpt, tmp_path_factory):
+def start_server(args, log):
+    """serve.py with ``args`` (config, checkpoint...) on a free port of
+    127.0.0.1, its output into the open file ``log``; returns the process
+    and its URL once /health answers (fails the test with the log's tail
+    when it does not)."""
     import socket
     with socket.socket() as sock:
         sock.bind(('127.0.0.1', 0))
         port = sock.getsockname()[1]
-    log = open(tmp_path_factory.mktemp('serve_log') / 'server.log', 'w+')
     env = dict(os.environ, OMP_NUM_THREADS='1', RAY_USAGE_STATS_ENABLED='0')
     proc = subprocess.Popen(
-        [sys.executable, osp.join(TOOLS, 'serve.py'), DEMO,
-         demo_ckpt, '--port', str(port), '--num-cpus', '1'],
+        [sys.executable, osp.join(TOOLS, 'serve.py'), *args, '--port',
+         str(port), '--num-cpus', '1'],
         cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
         start_new_session=True)
     url = f'http://127.0.0.1:{port}'
@@ -76,7 +78,7 @@ def server(demo_ckpt, tmp_path_factory):
     while True:
         try:
             if requests.get(url + '/health', timeout=2).status_code == 200:
-                break
+                return proc, url
         except requests.RequestException:
             pass
         if proc.poll() is not None or time.monotonic() > deadline:
@@ -87,9 +89,12 @@ def server(demo_ckpt, tmp_path_factory):
             log.seek(0)
             pytest.fail('server did not start:\n' + log.read()[-3000:])
         time.sleep(0.5)
-    yield dict(url=url, proc=proc)
-    # the whole group, also when the leader is gone (a test killed it):
-    # Ray's workers may outlive it; a group already gone is no error
+
+
+def stop_group(proc):
+    """SIGTERM, then SIGKILL, to the server's whole process group, also
+    when the leader is gone (a test killed it): Ray's workers may outlive
+    it; a group already gone is no error."""
     for sig in (signal.SIGTERM, signal.SIGKILL):
         try:
             os.killpg(proc.pid, sig)
@@ -99,6 +104,14 @@ def server(demo_ckpt, tmp_path_factory):
             break
         except subprocess.TimeoutExpired:
             pass  # SIGKILL next
+
+
+@pytest.fixture(scope='module')
+def server(demo_ckpt, tmp_path_factory):
+    log = open(tmp_path_factory.mktemp('serve_log') / 'server.log', 'w+')
+    proc, url = start_server([DEMO, demo_ckpt], log)
+    yield dict(url=url, proc=proc)
+    stop_group(proc)
     log.close()
 
 
@@ -311,6 +324,30 @@ def wait_until_down(url, timeout_s=30):
             return
         time.sleep(0.2)
     pytest.fail(f'{url} still answers {timeout_s} s after the kill')
+
+
+def test_clean_stop_exits_0_and_logs_no_failure(tmp_path):
+    """Ctrl+C (SIGINT to the leader, as a terminal sends it): the app is
+    deleted and Ray shut down, exit status 0, and nothing in the log that
+    reads like a failure (serve.shutdown() made Ray log "Task
+    ServeController.graceful_shutdown failed" on every clean stop)."""
+    with open(tmp_path / 'server.log', 'w+') as log:
+        proc, url = start_server([DEMO], log)
+        try:
+            # what the user sees before pressing Ctrl+C
+            deadline = time.monotonic() + 60
+            while f'on {url} (POST /predict' not in open(log.name).read():
+                assert time.monotonic() < deadline, 'no "serving" line'
+                time.sleep(0.2)
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(90) == 0
+        finally:
+            stop_group(proc)
+        log.seek(0)
+        text = log.read()
+    assert "Deleting app ['detector']" in text
+    for alarming in ('failed', 'Traceback', 'ERROR'):
+        assert alarming not in text, text[-3000:]
 
 
 def test_server_killed_mid_run_every_frame_answered(server, local, frames):
