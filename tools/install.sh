@@ -13,8 +13,9 @@
 #                     pip caches the built wheel, so a second environment on
 #                     the same machine reuses it.
 #   mmengine 0.10.7, mmdet 3.3.0
-#   setuptools [77,81) mmcv's setup.py and openmim import pkg_resources
-#                     (gone in 81); torch wants >= 77
+#   setuptools [77,80.9) mmcv's setup.py, openmim and MMEngine's config
+#                     bases import pkg_resources (gone in 81; from 80.9 every
+#                     import prints a deprecation warning); torch wants >= 77
 #   openmim 0.3.9     without opendatalab/openxlab, which pin setuptools 60
 set -euo pipefail
 
@@ -86,8 +87,8 @@ export PIP_CONSTRAINT="$ROOT/requirements/constraints.txt"
 # (the grep hides a harmless warning of this machine's pip config)
 pipq() { python -m pip install --progress-bar off -q "$@" 2> >(grep -v "^WARNING: Location" >&2); }
 
-say "build tools: setuptools>=77,<81, wheel"
-pipq "setuptools>=77,<81" wheel packaging
+say "build tools: setuptools>=77,<80.9, wheel"
+pipq "setuptools>=77,<80.9" wheel packaging
 say "PyTorch: $TORCH_SPEC"
 pipq "$TORCH_SPEC"
 say "NumPy and MMEngine 0.10.7"

@@ -223,7 +223,7 @@ VAL_ONLY = {'dawn_fog_val': ('dawn_fog', 0.3, 0)}
 #: ``--prepare`` downloads them into ``--wheels``. mmcv comes as its sdist.
 WHEELS = ['mmengine==0.10.7', 'mmdet==3.3.0', 'addict==2.4.0',
           'yapf==0.43.0', 'platformdirs', 'termcolor', 'terminaltables',
-          'pycocotools>=2.0.8', 'shapely', 'setuptools>=77,<81']
+          'pycocotools>=2.0.8', 'shapely', 'setuptools>=77,<80.9']
 MMCV = 'mmcv==2.1.0'
 
 #: Like-for-like speed (docs/benchmarks.md): B2, B5 and Swin-S at 300 test
