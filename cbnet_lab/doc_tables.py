@@ -1,15 +1,19 @@
 """Results tables in the docs, generated from their JSON records.
 
 A table in a Markdown page is a marked region whose opening mark holds
-the ``compare_recipes.py`` command that prints it from a committed
-record::
+the command that prints it from committed records, ``compare_recipes.py``
+(the recipe comparisons) or ``offload_seeds.py`` (the offload tables)::
 
     <!-- table: compare_recipes.py --set S --report-only --restore R.json -->
     ... (what the command prints: never typed by hand)
     <!-- /table -->
+    <!-- table: offload_seeds.py D/seed0.json D/seed1.json D/seed2.json -->
+    ...
+    <!-- /table -->
 
-:func:`update_docs` runs each region's command (``--report-only``: it
-trains nothing, in a work dir of its own) and writes what it prints
+:func:`update_docs` runs each region's command (``compare_recipes.py``
+with ``--report-only``: it trains nothing; each in an output folder of
+its own) and writes what it prints
 between the marks; ``check=True`` writes nothing and names the regions
 that would change (``tools/misc/update_doc_tables.py --check``, run by
 the tests), so no figure in the docs goes stale.
@@ -29,9 +33,34 @@ OPEN = '<!-- table:'
 CLOSE = '<!-- /table -->'
 REGION = re.compile(r'<!-- table:(?P<command>.*?)-->\n(?P<body>.*?)'
                     r'<!-- /table -->', re.S)
-#: The one command a region may name, and the option it must have.
-TOOL = 'compare_recipes.py'
-TOOL_PATH = osp.join('tools', 'analysis_tools', TOOL)
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A command a region may name.
+
+    Attributes:
+        path (str): The script, relative to the source tree.
+        out_option (str): Its option naming the output folder (given by
+            :func:`render`, never by the region).
+        table (str): The Markdown file it writes there.
+        required (tuple[str]): Options the region must give.
+    """
+    path: str
+    out_option: str
+    table: str
+    required: tuple = ()
+
+
+#: The commands a region may name, by script name.
+TOOLS = {
+    'compare_recipes.py': Tool(
+        osp.join('tools', 'analysis_tools', 'compare_recipes.py'),
+        '--work-dir', 'compare.md', required=('--report-only', )),
+    'offload_seeds.py': Tool(
+        osp.join('projects', 'edge_serving', 'tools', 'offload_seeds.py'),
+        '--out-dir', 'offload_seeds.md'),
+}
 #: The source tree whose tool prints the tables (this module's).
 CODE_ROOT = osp.dirname(osp.dirname(osp.abspath(__file__)))
 #: Pages with tables, relative to the repository root.
@@ -46,6 +75,7 @@ class Region:
     Attributes:
         doc (str): The page.
         line (int): The line of its opening mark (1-based).
+        tool (str): The command's script name (a key of :data:`TOOLS`).
         argv (list[str]): The command's arguments (after the tool's name).
         body (str): What is between the marks now.
         start (int): Offset of the body in the page's text.
@@ -53,6 +83,7 @@ class Region:
     """
     doc: str
     line: int
+    tool: str
     argv: List[str]
     body: str
     start: int
@@ -65,9 +96,9 @@ def find_regions(text: str, doc: str = '<text>') -> List[Region]:
     Raises:
         ValueError: An opening mark without its closing one (or a closing
             one without an opening), or a region that names another
-            command, or one without ``--report-only`` (a region never
-            trains), or one with ``--work-dir`` (each region gets its
-            own).
+            command, or one without an option its command needs
+            (``--report-only``: a region never trains), or one with the
+            command's output folder (each region gets its own).
     """
     _check_pairs(text, doc)
     regions = []
@@ -75,19 +106,22 @@ def find_regions(text: str, doc: str = '<text>') -> List[Region]:
         line = text.count('\n', 0, m.start()) + 1
         words = shlex.split(m.group('command'))
         where = f'{doc}:{line}'
-        if not words or osp.basename(words[0]) != TOOL:
+        name = osp.basename(words[0]) if words else None
+        if name not in TOOLS:
             raise ValueError(f'{where}: a table region names '
-                             f'{words[:1]}; only {TOOL} tables are '
-                             'generated')
+                             f'{words[:1]}; only {" and ".join(TOOLS)} '
+                             'tables are generated')
+        tool = TOOLS[name]
         argv = words[1:]
-        if '--report-only' not in argv:
-            raise ValueError(f'{where}: the command needs --report-only '
-                             '(a table is printed from its record, nothing '
-                             'is trained)')
-        if '--work-dir' in argv:
-            raise ValueError(f'{where}: leave --work-dir out (each region '
-                             'is printed in a folder of its own)')
-        regions.append(Region(doc=doc, line=line, argv=argv,
+        for option in tool.required:
+            if option not in argv:
+                raise ValueError(f'{where}: the command needs {option} (a '
+                                 'table is printed from its record, '
+                                 'nothing is trained)')
+        if tool.out_option in argv:
+            raise ValueError(f'{where}: leave {tool.out_option} out (each '
+                             'region is printed in a folder of its own)')
+        regions.append(Region(doc=doc, line=line, tool=name, argv=argv,
                               body=m.group('body'), start=m.start('body'),
                               end=m.end('body')))
     return regions
@@ -119,28 +153,31 @@ def _check_pairs(text: str, doc: str) -> None:
         expect = CLOSE if mark == OPEN else OPEN
 
 
-def render(argv: Sequence[str], root: str, python: str = sys.executable
-           ) -> str:
-    """What ``compare_recipes.py argv`` prints as its tables
-    (``compare.md``): the source tree's tool (:data:`CODE_ROOT`), run in
-    ``root`` (where the records' paths start) with a work dir of its own.
+def render(argv: Sequence[str], root: str, python: str = sys.executable,
+           tool: str = 'compare_recipes.py') -> str:
+    """What ``tool argv`` writes as its tables (``compare.md``,
+    ``offload_seeds.md``): the source tree's tool (:data:`CODE_ROOT`), run
+    in ``root`` (where the records' paths start) with an output folder of
+    its own.
 
     Raises:
         RuntimeError: The command failed (its output's tail).
     """
+    spec = TOOLS[tool]
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ)
         env['PYTHONPATH'] = os.pathsep.join(
-            [CODE_ROOT, osp.join(CODE_ROOT, 'projects', 'peer_dehaze')] +
+            [CODE_ROOT, osp.join(CODE_ROOT, 'projects', 'peer_dehaze'),
+             osp.join(CODE_ROOT, 'projects', 'edge_serving')] +
             ([env['PYTHONPATH']] if env.get('PYTHONPATH') else []))
         proc = subprocess.run(
-            [python, osp.join(CODE_ROOT, TOOL_PATH), *argv, '--work-dir',
-             tmp],
+            [python, osp.join(CODE_ROOT, spec.path), *argv,
+             spec.out_option, tmp],
             cwd=root, env=env, capture_output=True, text=True)
-        table = osp.join(tmp, 'compare.md')
+        table = osp.join(tmp, spec.table)
         if proc.returncode != 0 or not osp.isfile(table):
             raise RuntimeError(
-                f'{TOOL} {" ".join(argv)} failed (exit {proc.returncode}): '
+                f'{tool} {" ".join(argv)} failed (exit {proc.returncode}): '
                 f'{(proc.stdout + proc.stderr)[-2000:]}')
         with open(table) as f:
             return f.read().strip('\n') + '\n'
@@ -168,7 +205,7 @@ def update_docs(root: str, docs: Optional[Sequence[str]] = None,
         docs (Sequence[str], optional): Pages, relative to ``root``.
         check (bool): Write nothing; only report.
         log (callable): Progress printer.
-        renderer (callable): ``(argv, root) -> str`` (tests).
+        renderer (callable): ``(argv, root, tool=NAME) -> str`` (tests).
 
     Returns:
         list[Region]: The regions whose table is (``check``: would be)
@@ -185,8 +222,9 @@ def update_docs(root: str, docs: Optional[Sequence[str]] = None,
             continue
         out, last = [], 0
         for region in regions:
-            log(f'{doc}:{region.line}: {TOOL} {" ".join(region.argv)}')
-            table = renderer(region.argv, root)
+            log(f'{doc}:{region.line}: {region.tool} '
+                f'{" ".join(region.argv)}')
+            table = renderer(region.argv, root, tool=region.tool)
             if table != region.body:
                 stale.append(region)
             out += [text[last:region.start], table]

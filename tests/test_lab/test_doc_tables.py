@@ -28,7 +28,8 @@ After.
 """
 
 
-def fake_render(argv, root):
+def fake_render(argv, root, tool='compare_recipes.py'):
+    assert tool == 'compare_recipes.py'
     return f'| printed | {len(argv)} args |\n'
 
 
@@ -82,6 +83,8 @@ def test_check_names_stale_regions_and_writes_nothing(tmp_path):
      'page.md:1: the command needs --report-only'),
     (f'<!-- table: {CMD} --work-dir w -->\n<!-- /table -->\n',
      'leave --work-dir out'),
+    ('<!-- table: offload_seeds.py a.json --out-dir o -->\n'
+     '<!-- /table -->\n', 'leave --out-dir out'),
 ])
 def test_malformed_marks_are_errors_naming_page_and_line(text, match):
     with pytest.raises(ValueError, match=match):
@@ -133,3 +136,27 @@ def test_a_real_record_through_the_real_command(tmp_path):
     assert page.read_text().count('\n') == 2
     with pytest.raises(SystemExit):
         tool.main(['missing.md'])
+
+
+def test_an_offload_table_through_the_real_command():
+    """The committed records of three edge seeds: the region gets
+    offload_seeds.py's table, its 'always server' row the mean +- std of
+    the records' own values (computed here)."""
+    import statistics
+    folder = osp.join('docs', 'serving', 'realfog', 'offload_coco')
+    records = [osp.join(folder, f'seed{s}.json') for s in (0, 1, 2)]
+    region = dt.find_regions(
+        f'<!-- table: offload_seeds.py {" ".join(records)} -->\n'
+        '<!-- /table -->\n', 'page.md')[0]
+    assert region.tool == 'offload_seeds.py'
+    table = dt.render(region.argv, dt_root(), tool=region.tool)
+    aps = []
+    for path in records:
+        with open(osp.join(dt_root(), path)) as f:
+            rows = json.load(f)['rows']
+        aps += [r['bbox_mAP'] for r in rows if r['policy'] == 'always server']
+    assert len(aps) == 3
+    row = [line for line in table.splitlines()
+           if line.startswith('| always server |')]
+    assert row and (f'| {statistics.mean(aps):.1f} +- '
+                    f'{statistics.stdev(aps):.1f} |') in row[0], row
