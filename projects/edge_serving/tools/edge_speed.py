@@ -52,9 +52,6 @@ def parse_args(argv=None):
         name, path, ckpt = item[0], item[1], (item[2:] or [None])[0]
         if name in models:
             p.error(f'--model {name} given twice')
-        for f in (path, ckpt):
-            if f is not None and not osp.isfile(f):
-                p.error(f'--model {name}: no such file {f}')
         if path.endswith('.onnx') and ckpt:
             p.error(f'--model {name}: an .onnx file carries its weights; '
                     'no checkpoint')
@@ -67,13 +64,24 @@ def parse_args(argv=None):
             args.threads < 1:
         p.error('--size, --repeats and --threads must be positive, '
                 '--warmup >= 0')
-    if args.image and not osp.isfile(args.image):
-        p.error(f'--image {args.image}: no such file')
+    args.error = p.error
     return args
+
+
+def check_files(args) -> None:
+    """Every model file, checkpoint and --image exists (a usage error
+    naming the first that does not, before anything is loaded)."""
+    for name, (path, ckpt) in args.models.items():
+        for f in (path, ckpt):
+            if f is not None and not osp.isfile(f):
+                args.error(f'--model {name}: no such file {f}')
+    if args.image and not osp.isfile(args.image):
+        args.error(f'--image {args.image}: no such file')
 
 
 def main(argv=None):
     args = parse_args(argv)
+    check_files(args)
     os.environ['OMP_NUM_THREADS'] = str(args.threads)
     import mmcv
     import numpy as np

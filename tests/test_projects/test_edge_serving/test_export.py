@@ -135,7 +135,8 @@ def test_bad_input_is_a_clear_error(exported, checkpoint, tmp_path):
         ex.build_detector(CONFIG, wrong)
 
 
-def test_route_and_speed_tools_run_the_export(exported, images, tmp_path):
+def test_route_and_speed_tools_run_the_export(exported, images, tmp_path,
+                                              capsys):
     import cv2
     from tool_helpers import load_tool
     out, _ = exported
@@ -163,3 +164,13 @@ def test_route_and_speed_tools_run_the_export(exported, images, tmp_path):
     assert (tmp_path / 'speed' / 'edge_speed.md').is_file()
     with pytest.raises(SystemExit):
         speed.parse_args(['--model', 'a', out, 'ckpt.pth', '--out-dir', 'o'])
+    # a missing file: a usage error naming it, before anything loads
+    missing = str(tmp_path / 'none.onnx')
+    with pytest.raises(SystemExit) as err:
+        speed.main(['--model', 'a', missing, '--out-dir', 'o'])
+    assert err.value.code == 2
+    assert f'--model a: no such file {missing}' in capsys.readouterr().err
+    with pytest.raises(SystemExit) as err:
+        speed.main(['--model', 'a', out, '--image', missing, '--out-dir',
+                    'o'])
+    assert f'--image {missing}: no such file' in capsys.readouterr().err
