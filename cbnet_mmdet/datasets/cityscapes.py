@@ -76,6 +76,22 @@ class CBNetCityscapesDataset(CityscapesDataset):
         self.load_report: dict = {}
         super().__init__(*args, **kwargs)
 
+    def _missing_annotations_fix(self) -> str:
+        """What makes the missing COCO file, for the folder at hand: its
+        ``gtFine`` converted, when the folder has one; otherwise where the
+        data comes from (Cityscapes, or the generated stand-in)."""
+        root = self.data_root or osp.dirname(
+            osp.dirname(osp.abspath(self.ann_file)))
+        if osp.isdir(osp.join(root, 'gtFine')):
+            return (f'convert its gtFine: python tools/dataset_converters/'
+                    f'cityscapes.py {root} (the generated stand-in: python '
+                    f'tools/misc/generate_cityscapes_like.py {root} '
+                    f'--convert)')
+        return (f'{root} has no gtFine: get Cityscapes into it and convert '
+                f'gtFine with tools/dataset_converters/cityscapes.py '
+                f'(docs/dataset.md), or generate the stand-in there: python '
+                f'tools/misc/generate_cityscapes_like.py {root} --convert')
+
     def load_data_list(self) -> List[dict]:
         """Load the annotations, then check the images they name.
 
@@ -85,8 +101,8 @@ class CBNetCityscapesDataset(CityscapesDataset):
         local = self.backend_args is None
         if local and not osp.isfile(self.ann_file):
             raise FileNotFoundError(
-                f'annotation file not found: {self.ann_file} (convert '
-                f'gtFine with tools/dataset_converters/cityscapes.py)')
+                f'annotation file not found: {self.ann_file} '
+                f'({self._missing_annotations_fix()})')
         with get_local_path(self.ann_file,
                             backend_args=self.backend_args) as path:
             try:

@@ -88,9 +88,23 @@ def broken_root(cityscapes_like_root, tmp_path):
     return str(root)
 
 
-def test_missing_annotation_file(broken_root):
+def test_missing_annotation_file_names_the_fix_that_applies(broken_root):
     os.remove(osp.join(broken_root, ANN))
-    with pytest.raises(FileNotFoundError, match=re.escape(ANN)):
+    # no gtFine (what the demo's stand-in leaves when its JSON is gone
+    # too): where the data comes from, the stand-in's command first-hand
+    with pytest.raises(FileNotFoundError) as err:
+        _dataset(broken_root)
+    message = str(err.value)
+    assert ANN in message
+    assert (f'{broken_root} has no gtFine: get Cityscapes into it') in message
+    assert (f'python tools/misc/generate_cityscapes_like.py {broken_root} '
+            f'--convert') in message
+    # a gtFine folder: convert it
+    os.makedirs(osp.join(broken_root, 'gtFine'))
+    with pytest.raises(FileNotFoundError,
+                       match=re.escape('convert its gtFine: python tools/'
+                                       'dataset_converters/cityscapes.py '
+                                       f'{broken_root}')):
         _dataset(broken_root)
 
 
