@@ -1,3 +1,6 @@
-from .metrics import CBNetClassMapMetric, CBNetInstanceMIoUMetric
+from .metrics import (CBNetCityScapesMetric, CBNetClassMapMetric,
+                      CBNetInstanceMIoUMetric)
 
-__all__ = ['CBNetClassMapMetric', 'CBNetInstanceMIoUMetric']
+__all__ = [
+    'CBNetCityScapesMetric', 'CBNetClassMapMetric', 'CBNetInstanceMIoUMetric'
+]

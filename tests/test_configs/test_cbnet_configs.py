@@ -125,12 +125,14 @@ def test_headline_config_is_the_papers_recipe():
     assert opt.foreach  # batched update (speed only, same arithmetic)
     assert [s.type for s in cfg.param_scheduler] == ['LinearLR', 'PolyLR']
     assert cfg.param_scheduler[1].end == 12
-    # 12 real epochs (no RepeatDataset x8), 8 classes, AP + mIoU
+    # 12 real epochs (no RepeatDataset x8), 8 classes, COCO AP + mIoU +
+    # the official Cityscapes AP
     assert cfg.train_dataloader.dataset.times == 1
     assert len(cfg.train_dataloader.dataset.dataset.get(
         'metainfo', {}).get('classes', range(8))) == 8
     metrics = {e.type for e in cfg.val_evaluator}
-    assert metrics == {'CocoMetric', 'CBNetInstanceMIoUMetric'}
+    assert metrics == {'CocoMetric', 'CBNetInstanceMIoUMetric',
+                       'CBNetCityScapesMetric'}
     assert cfg.custom_imports.imports == ['cbnet_mmdet']
 
 

@@ -112,7 +112,8 @@ def test_ap_drop_num_images_equals_a_set_of_those_images(
     cfg = Config.fromfile(cfg_file)
     cfg.test_dataloader.dataset.ann_file = ann
     for evaluator in cfg.test_evaluator:
-        evaluator.ann_file = ann
+        if 'ann_file' in evaluator:  # not the official Cityscapes metric
+            evaluator.ann_file = ann
     cfg.dump(str(tmp_path / 'two_cfg.py'))
     full = tool.main([str(tmp_path / 'two_cfg.py'), ckpt, '--betas', '0.02',
                       '--out-dir', str(tmp_path / 'full')])

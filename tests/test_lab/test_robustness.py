@@ -238,6 +238,8 @@ def test_tool_runs_demo_and_cbnet_dd(cityscapes_like_root, tmp_path,
     cfg.test_dataloader.dataset.data_root = cityscapes_like_root + '/'
     cfg.test_dataloader.update(num_workers=0, persistent_workers=False)
     for m in cfg.test_evaluator:
+        if 'ann_file' not in m:
+            continue  # the official Cityscapes metric reads gtFine
         m['ann_file'] = cityscapes_like_root + '/annotations/' \
             'instancesonly_filtered_gtFine_val.json'
     if distill:

@@ -1,6 +1,7 @@
 # Cityscapes instance segmentation, 8 classes (person, rider, car, truck,
 # bus, train, motorcycle, bicycle): MMDet's dataset config with our dataset
-# (clear errors on missing/corrupt files) and evaluators (COCO AP + mIoU).
+# (clear errors on missing/corrupt files) and evaluators (COCO AP, mIoU and
+# the official Cityscapes AP).
 # Annotations: python tools/dataset_converters/cityscapes.py data/cityscapes
 _base_ = 'mmdet::_base_/datasets/cityscapes_instance.py'
 
@@ -66,5 +67,10 @@ val_evaluator = [
         score_thr=0.5,
         paint_order='score',
         backend_args=backend_args),
+    # the official instance AP of the Cityscapes benchmark (cityscapesScripts
+    # on gtFine's *_instanceIds.png, as MMDet's own cityscapes_instance.py
+    # has it; COCO-style AP differs from it), for foggy images too; results
+    # in a temporary folder
+    dict(type='CBNetCityScapesMetric', backend_args=backend_args),
 ]
 test_evaluator = val_evaluator
