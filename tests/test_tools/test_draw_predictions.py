@@ -24,9 +24,19 @@ def test_clear_and_foggy_panels(cityscapes_like_root, tmp_path, capsys):
         'CBNetInstanceMIoUMetric)' in capsys.readouterr().out
     drawn = cv2.imread(out)
     h, w = cv2.imread(image).shape[:2]
-    assert drawn.shape == (h, 2 * w, 3)  # clear | foggy, one scene
+    tool = load_tool('misc/draw_predictions.py')
+    top = tool.TITLE_HEIGHT
+    # clear | foggy, one scene, each under its title band
+    assert drawn.shape == (top + h, 2 * w, 3)
     # the two panels show different pictures (the foggy twin is hazier)
-    assert not (drawn[:, :w] == drawn[:, w:]).all()
+    assert not (drawn[top:, :w] == drawn[top:, w:]).all()
+    # titled in words: each band is the tool's own rendering of its title
+    for i, title in enumerate(('clear', 'beta 0.02')):
+        band = drawn[:top, i * w:(i + 1) * w]
+        want = tool.titled(np.zeros((1, w, 3), np.uint8),
+                           f'{title}, scores >= {thr:g}')[:top, :, ::-1]
+        assert (band == want).all(), title
+        assert (band < 128).any() and (band == 255).any()  # text on white
 
 
 def test_threshold_is_the_evaluations(capsys):

@@ -9,6 +9,9 @@ Each image is drawn with MMDet's ``DetLocalVisualizer`` (masks, boxes,
 class names and scores); the panels are stacked into one PNG, one row per
 image. A clear ``*_leftImg8bit.png`` is paired with its foggy twins when
 ``--betas`` is given, so a row shows the same scene in clear and in fog.
+Each panel is titled above the picture with its condition (``clear``,
+``beta 0.01``...; the file name when no ``--betas`` is given) and the
+score the predictions are drawn from.
 
 Predictions are drawn from the score the config's own evaluation paints
 masks from (the ``score_thr`` of its ``CBNetInstanceMIoUMetric``: 0.1 in
@@ -135,8 +138,27 @@ def evaluation_score_thr(cfg) -> Tuple[float, str]:
     return MMDET_SCORE_THR, 'MMDetection\'s default'
 
 
-def draw_rows(model, rows, score_thr):
-    """Draw every image of every row; returns the stacked RGB array."""
+#: Height (px) of the title band above each panel.
+TITLE_HEIGHT = 22
+
+
+def titled(panel: np.ndarray, title: str) -> np.ndarray:
+    """``panel`` (RGB) under a white band with ``title`` in black."""
+    import cv2
+    band = np.full((TITLE_HEIGHT, panel.shape[1], 3), 255, np.uint8)
+    cv2.putText(band, title, (4, TITLE_HEIGHT - 7), cv2.FONT_HERSHEY_SIMPLEX,
+                0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate([band, panel], axis=0)
+
+
+def draw_rows(model, rows, score_thr, titles=None):
+    """Draw every image of every row; returns the stacked RGB array.
+
+    Args:
+        titles (list[str], optional): One title per column (the
+            conditions), drawn above each panel with the score threshold;
+            default the file names.
+    """
     visualizer = VISUALIZERS.build(model.cfg.visualizer)
     visualizer.dataset_meta = model.dataset_meta
     drawn_rows = []
@@ -150,7 +172,9 @@ def draw_rows(model, rows, score_thr):
             visualizer.add_datasample(
                 osp.basename(path), img, data_sample=result, draw_gt=False,
                 show=False, pred_score_thr=score_thr)
-            panels.append(visualizer.get_image())
+            title = (titles[len(panels)] if titles else osp.basename(path))
+            panels.append(titled(visualizer.get_image(),
+                                 f'{title}, scores >= {score_thr:g}'))
         drawn_rows.append(np.concatenate(panels, axis=1))
     width = max(r.shape[1] for r in drawn_rows)
     drawn_rows = [
@@ -176,7 +200,9 @@ def main(argv=None):
     else:
         score_thr, source = args.score_thr, '--score-thr'
     print(f'drawing predictions scoring >= {score_thr} ({source})')
-    canvas = draw_rows(model, rows, score_thr)
+    titles = ['clear'] + [f'beta {b:g}' for b in args.betas] \
+        if args.betas else None
+    canvas = draw_rows(model, rows, score_thr, titles)
     os.makedirs(osp.dirname(osp.abspath(args.out)), exist_ok=True)
     mmcv.imwrite(canvas[..., ::-1], args.out)
     print(f'predictions drawn: {args.out} ({len(rows)} scenes, '
