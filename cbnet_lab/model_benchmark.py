@@ -436,25 +436,35 @@ def markdown(meta, results, scaling):
 
 
 def plot(scaling, path):
-    """Latency vs input pixels and train step vs instances, one PNG."""
+    """Latency vs input pixels and train step vs instances, one PNG with
+    a panel for each that was measured (a run that timed only one of them
+    gets one panel, never an empty one).
+
+    Raises:
+        ValueError: nothing was measured.
+    """
+    panels = [(key, xlabel, ylabel, title, x)
+              for key, xlabel, ylabel, title, x in (
+                  ('sizes', 'input (megapixels)', 'latency b1 (s)',
+                   'inference vs input size',
+                   lambda r: r['size'][0] * r['size'][1] / 1e6),
+                  ('items', 'ground-truth instances / image',
+                   'train step (s)', 'training vs instances',
+                   lambda r: r['num_items'])) if scaling.get(key)]
+    if not panels:
+        raise ValueError('no scaling measurement to plot')
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for name, rows in scaling['sizes'].items():
-        axes[0].plot([r['size'][0] * r['size'][1] / 1e6 for r in rows],
-                     [r['seconds'] for r in rows], 'o-', label=name)
-    axes[0].set(xlabel='input (megapixels)', ylabel='latency b1 (s)',
-                title='inference vs input size')
-    for name, rows in scaling['items'].items():
-        axes[1].plot([r['num_items'] for r in rows],
-                     [r['seconds'] for r in rows], 'o-', label=name)
-    axes[1].set(xlabel='ground-truth instances / image',
-                ylabel='train step (s)', title='training vs instances')
-    for ax in axes:
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4),
+                             squeeze=False)
+    for ax, (key, xlabel, ylabel, title, x) in zip(axes[0], panels):
+        for name, rows in scaling[key].items():
+            ax.plot([x(r) for r in rows], [r['seconds'] for r in rows],
+                    'o-', label=name)
+        ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=8)
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

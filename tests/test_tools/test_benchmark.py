@@ -600,3 +600,25 @@ def test_edge_suite_end_to_end_on_a_tiny_frame(tmp_path):
     results[SERVER]['checkpoint'] = 'server.pth'
     head = markdown(meta, results, record['scaling']).splitlines()[0]
     assert 'trained weights (checkpoints below);' in head
+
+
+def test_scaling_plot_has_a_panel_per_measurement_only(tmp_path):
+    """A run that timed only input sizes gets one panel (an empty
+    'training vs instances' panel was drawn before); nothing measured is
+    an error."""
+    import cv2
+
+    from cbnet_lab.model_benchmark import plot
+    sizes = {'m': [dict(size=[64, 128], seconds=0.1),
+                   dict(size=[128, 256], seconds=0.3)]}
+    items = {'m': [dict(num_items=1, seconds=0.2),
+                   dict(num_items=8, seconds=0.5)]}
+    widths = {}
+    for name, scaling in (('one', dict(sizes=sizes, items={})),
+                          ('two', dict(sizes=sizes, items=items))):
+        path = str(tmp_path / f'{name}.png')
+        plot(scaling, path)
+        widths[name] = cv2.imread(path).shape[1]
+    assert widths == {'one': 500, 'two': 1000}  # 5 inches a panel, 100 dpi
+    with pytest.raises(ValueError, match='no scaling measurement'):
+        plot(dict(sizes={}, items={}), str(tmp_path / 'none.png'))
