@@ -13,6 +13,7 @@ import subprocess
 import pytest
 from mmengine.config import Config
 from PIL import Image
+from tool_helpers import load_tool
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 NUM_TRAIN, NUM_VAL = 8, 4
@@ -59,5 +60,7 @@ def test_demo_script_runs_every_step(tmp_path):
     for r in rows:
         assert all(0.0 <= float(v) <= 100.0 for v in r[1:5]), r
     # the picture: 2 scenes x (clear | beta 0.01 | beta 0.02)
+    title = load_tool('misc/draw_predictions.py').TITLE_HEIGHT
     with Image.open(work / 'predictions.png') as img:
-        assert img.size == (3 * 512, 2 * 256)  # panels at the data's size
+        # panels at the data's size, each under its title band
+        assert img.size == (3 * 512, 2 * (256 + title))
