@@ -342,24 +342,12 @@ class CBNetNonFiniteLossHook(Hook):
                 batch_idx: int, data_batch: Optional[dict]) -> None:
         """Add a value to its history; raise when it blew up."""
         history = self.history.setdefault(key, deque(maxlen=self.window))
-        if (self.warn_factor and key not in self.warned
-                and len(history) >= self.min_history):
+        checked = self.blowup_factor or self.warn_factor
+        if checked and len(history) >= self.min_history:
             median = statistics.median(v for _, v in history)
-            if median > 0 and self.warn_factor * median < value <= (
-                    self.blowup_factor or math.inf) * median:
-                self.warned.add(key)
-                stops = (f'training stops at {self.blowup_factor:g} x'
-                         if self.blowup_factor else 'the stop is off')
-                runner.logger.warning(
-                    f'CBNetNonFiniteLossHook: {key} rose to {value:.4g} at '
-                    f'{self._where(runner, batch_idx)}, '
-                    f'{value / median:.3g} x the median {median:.4g} of the '
-                    f'last {len(history)} iterations; {stops}. Lower the '
-                    f'lr if it keeps rising (logged once per run).')
-        if self.blowup_factor and len(history) >= self.min_history:
-            median = statistics.median(v for _, v in history)
-            if median > 0 and value > self.blowup_factor * median:
-                seen = len(history)
+            seen = len(history)
+            if median > 0 and self.blowup_factor and \
+                    value > self.blowup_factor * median:
                 history.append((it, value))
                 raise self._stop(
                     runner, DivergenceError,
@@ -367,6 +355,18 @@ class CBNetNonFiniteLossHook(Hook):
                     f'{value:.4g} is more than {self.blowup_factor:g} x the '
                     f'median {median:.4g} of the last {seen} iterations'
                     f'{self._images(data_batch)}.', it)
+            # below the stop (or with it off): a steep rise is a warning
+            if median > 0 and self.warn_factor and key not in self.warned \
+                    and value > self.warn_factor * median:
+                self.warned.add(key)
+                stops = (f'training stops at {self.blowup_factor:g} x'
+                         if self.blowup_factor else 'the stop is off')
+                runner.logger.warning(
+                    f'CBNetNonFiniteLossHook: {key} rose to {value:.4g} at '
+                    f'{self._where(runner, batch_idx)}, '
+                    f'{value / median:.3g} x the median {median:.4g} of the '
+                    f'last {seen} iterations; {stops}. Lower the lr if it '
+                    f'keeps rising (logged once per run).')
         history.append((it, value))
 
     def after_train_iter(self,

@@ -16,13 +16,13 @@ from torch import Tensor
 from torch.nn.modules.batchnorm import _BatchNorm
 
 from ..layers import CBNetMish  # noqa: F401  (registers 'CBNetMish')
-from ..utils import refuse_misfit
+from ..utils import RefuseMisfitMixin
 from .mit_checkpoint import convert_mit_checkpoint
 from .mit_layers import MiTEncoderLayer
 
 
 @MODELS.register_module()
-class CBNetMiT(BaseModule):
+class CBNetMiT(RefuseMisfitMixin, BaseModule):
     """Mix Vision Transformer with Mish and CSPE (CBNet, section II.A).
 
     SegFormer's MiT encoder (Xie et al., 2021): four stages, each an
@@ -106,6 +106,11 @@ class CBNetMiT(BaseModule):
         patch_sizes=[7, 3, 3, 3],
         strides=[4, 2, 2, 2])
     _required = ('embed_dims', 'depths', 'num_heads', 'sr_ratios')
+    #: Tensors a checkpoint may lack (RefuseMisfitMixin): the CSPE tables,
+    #: which the published SegFormer weights have none of; they keep their
+    #: zero initialisation. Any other tensor missing or of another shape (a
+    #: MiT of another size, another trunk) is refused, whoever loads it.
+    misfit_optional = ('cspe.table', )
 
     def __init__(self,
                  arch: Union[str, dict] = 'b0',
@@ -239,20 +244,6 @@ class CBNetMiT(BaseModule):
                 if isinstance(m, _BatchNorm):
                     m.eval()
         return self
-
-    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
-                              strict, missing_keys, unexpected_keys,
-                              error_msgs) -> None:
-        """PyTorch's loading, after refusing a checkpoint that offers the
-        backbone some of its tensors but not all of them with their shapes
-        (a MiT of another size, another trunk;
-        :func:`~cbnet_mmdet.models.utils.refuse_misfit`), through any
-        loader. CSPE tables may be missing (the published SegFormer
-        weights have none): they keep their zero initialisation."""
-        refuse_misfit(self, state_dict, prefix, optional=('cspe.table', ))
-        super()._load_from_state_dict(state_dict, prefix, local_metadata,
-                                      strict, missing_keys, unexpected_keys,
-                                      error_msgs)
 
     def init_weights(self) -> None:
         """Load a MiT checkpoint or initialise like SegFormer.

@@ -7,7 +7,7 @@ from mmdet.registry import MODELS
 from mmdet.utils import ConfigType, OptConfigType, OptMultiConfig
 from mmengine.config import ConfigDict
 
-from ..utils import refuse_misfit
+from ..utils import RefuseMisfitMixin
 
 
 # Stage 1 (anchor refinement) assigns by the anchor-centre region of each
@@ -40,7 +40,7 @@ DEFAULT_TRAIN_CFG = (
 
 
 @MODELS.register_module()
-class CBNetCascadeRPNHead(CascadeRPNHead):
+class CBNetCascadeRPNHead(RefuseMisfitMixin, CascadeRPNHead):
     """Cascade RPN with the CBNet training objective (paper (2), (3)).
 
     Two ``StageCascadeRPNHead`` stages (Vu et al. 2019) on a pyramid:
@@ -254,18 +254,6 @@ class CBNetCascadeRPNHead(CascadeRPNHead):
                 'test_cfg=dict(nms_pre=..., max_per_img=..., nms=..., '
                 'min_bbox_size=...) (a detector passes its test_cfg.rpn) '
                 'or pass proposal_cfg')
-
-    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
-                              strict, missing_keys, unexpected_keys,
-                              error_msgs) -> None:
-        """PyTorch's loading, after refusing a checkpoint that offers the
-        RPN some of its tensors but not all of them with their shapes
-        (another number of stages, widths or adaption;
-        :func:`~cbnet_mmdet.models.utils.refuse_misfit`)."""
-        refuse_misfit(self, state_dict, prefix)
-        super()._load_from_state_dict(state_dict, prefix, local_metadata,
-                                      strict, missing_keys, unexpected_keys,
-                                      error_msgs)
 
     def loss_and_predict(self, x, batch_data_samples,
                          proposal_cfg: OptConfigType = None):

@@ -9,7 +9,7 @@ from mmdet.registry import MODELS
 from mmdet.utils import MultiConfig, OptConfigType
 from torch import Tensor
 
-from ..utils import refuse_misfit, use_channels_last
+from ..utils import RefuseMisfitMixin, use_channels_last
 
 # The searched NAS-FPN cell graph (Ghiasi et al. 2019, as in MMDet's
 # ``NASFPN``) merges exactly five consecutive pyramid levels.
@@ -17,7 +17,7 @@ NUM_GRAPH_LEVELS = 5
 
 
 @MODELS.register_module()
-class CBNetNASFPN(NASFPN):
+class CBNetNASFPN(RefuseMisfitMixin, NASFPN):
     """NAS-FPN adapter for the Mix Transformer stages (paper Sec. II.A).
 
     The four MiT stage outputs (strides 4/8/16/32, different widths) are
@@ -168,18 +168,6 @@ class CBNetNASFPN(NASFPN):
         for stage in self.fpn_stages:
             for cell in stage.values():
                 cell.upsample_mode = upsample_mode
-
-    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
-                              strict, missing_keys, unexpected_keys,
-                              error_msgs) -> None:
-        """PyTorch's loading, after refusing a checkpoint that offers the
-        neck some of its tensors but not all of them with their shapes
-        (another depth, width or fine path;
-        :func:`~cbnet_mmdet.models.utils.refuse_misfit`)."""
-        refuse_misfit(self, state_dict, prefix)
-        super()._load_from_state_dict(state_dict, prefix, local_metadata,
-                                      strict, missing_keys, unexpected_keys,
-                                      error_msgs)
 
     def forward(self, inputs: Sequence[Tensor]) -> Tuple[Tensor, ...]:
         """Build the pyramid.

@@ -1,4 +1,4 @@
 from .memory_format import use_channels_last
-from .state_dict_fit import refuse_misfit
+from .state_dict_fit import RefuseMisfitMixin, refuse_misfit
 
-__all__ = ['use_channels_last', 'refuse_misfit']
+__all__ = ['use_channels_last', 'refuse_misfit', 'RefuseMisfitMixin']

@@ -9,7 +9,8 @@ the tensors offered to it in ``Module._load_from_state_dict``; a
 component that calls :func:`refuse_misfit` there refuses a checkpoint that
 offers it tensors but not all of its own with their shapes, whoever
 loads it. A checkpoint that offers it nothing (a checkpoint of a part of
-the model) loads as before: PyTorch's and MMEngine's loaders offer a
+the model) loads as before. :class:`RefuseMisfitMixin` does that call
+for a component; PyTorch's and MMEngine's loaders offer a
 module only the keys under its own prefix, so a component cannot tell
 such a checkpoint from one of another model whose names share nothing
 with its own (a CBNet-DD checkpoint, everything under ``student.`` and
@@ -75,3 +76,26 @@ def refuse_misfit(module: nn.Module,
     lines.append(f'What to do: it is a checkpoint of another model or '
                  f'architecture; {CONFIG_HINT}.')
     raise CheckpointMismatchError('\n'.join(lines))
+
+
+class RefuseMisfitMixin:
+    """``_load_from_state_dict`` that calls :func:`refuse_misfit` first.
+
+    Put it before the ``nn.Module`` base of a component; name the tensors
+    a checkpoint may lack in ``misfit_optional`` (name endings).
+    """
+
+    #: Name endings of tensors a checkpoint may lack.
+    misfit_optional: Sequence[str] = ()
+
+    def _load_from_state_dict(self, state_dict, prefix, local_metadata,
+                              strict, missing_keys, unexpected_keys,
+                              error_msgs) -> None:
+        """PyTorch's loading, after refusing a checkpoint that offers the
+        component some of its tensors but not all of them with their
+        shapes (:func:`refuse_misfit`), whoever loads it."""
+        refuse_misfit(self, state_dict, prefix,
+                      optional=self.misfit_optional)
+        super()._load_from_state_dict(state_dict, prefix, local_metadata,
+                                      strict, missing_keys, unexpected_keys,
+                                      error_msgs)
