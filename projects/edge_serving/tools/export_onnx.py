@@ -36,16 +36,23 @@ def parse_args(argv=None):
     args = p.parse_args(argv)
     if args.shape and min(args.shape) < 1:
         p.error(f'--shape must be two positive integers, got {args.shape}')
-    for path in args.check or ():
-        if not osp.isfile(path):
-            p.error(f'--check {path}: no such file')
     if not args.out.endswith('.onnx'):
         p.error(f'--out {args.out}: give a file name ending in .onnx')
+    args.error = p.error
     return args
+
+
+def check_files(args) -> None:
+    """Every --check image exists (a usage error naming the first that
+    does not, before anything is loaded or written)."""
+    for path in args.check or ():
+        if not osp.isfile(path):
+            args.error(f'--check {path}: no such file')
 
 
 def main(argv=None):
     args = parse_args(argv)
+    check_files(args)
     import mmcv
 
     from cbnet_serving.export import detections_gap, export_yolox

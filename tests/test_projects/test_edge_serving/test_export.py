@@ -174,3 +174,23 @@ def test_route_and_speed_tools_run_the_export(exported, images, tmp_path,
         speed.main(['--model', 'a', out, '--image', missing, '--out-dir',
                     'o'])
     assert f'--image {missing}: no such file' in capsys.readouterr().err
+
+
+def test_export_tool_refuses_a_missing_check_image_before_exporting(
+        tmp_path, capsys):
+    """A --check image that does not exist is a usage error naming it,
+    from main (so the documented command parses where the photo is not
+    there) and before the export writes anything."""
+    from tool_helpers import load_tool
+    tool = load_tool('projects/edge_serving/tools/export_onnx.py')
+    missing = str(tmp_path / 'none.jpg')
+    out = tmp_path / 'edge.onnx'
+    args = tool.parse_args([CONFIG, '--out', str(out), '--check', missing])
+    assert args.check == [missing]
+    with pytest.raises(SystemExit) as err:
+        tool.main([CONFIG, '--out', str(out), '--check', missing])
+    assert err.value.code == 2
+    assert f'--check {missing}: no such file' in capsys.readouterr().err
+    assert not out.exists()
+    with pytest.raises(SystemExit):
+        tool.parse_args([CONFIG, '--out', str(tmp_path / 'edge.txt')])
