@@ -1,0 +1,80 @@
+"""The COCO-trunk sets end to end on tiny fake data: realfog_coco_trunk
+(a VOC folder, boxes) and coco_street_coco_trunk (the COCO street
+converter's output, masks), each from seeded stand-ins of the converted
+YOLOX-Nano file built here (no weights file, no network): the trained
+models started from the stand-in's trunk and kept its batch-norm
+statistics."""
+import pytest
+import torch
+from test_pretrained_sets import fake_coco
+from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
+
+from cbnet_lab import recipe_comparison as rc
+from cbnet_tools import pretrained as pt
+from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+from cbnet_tools.synthetic.yolox_checkpoints import PROBE_NORM
+from cbnet_tools.synthetic.yolox_checkpoints import tiny_yolox_nano
+
+BUDGET = rc.Budget(iters=2, batch_size=2, warmup_iters=1, num_workers=0,
+                   img_scale=(160, 96))
+STEM = 'backbone.stem.conv.conv.weight'
+
+
+@pytest.fixture
+def fake_coco_yolox(tmp_path, monkeypatch):
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
+    return tiny_yolox_nano()[2]
+
+
+def started_from(state, coco):
+    # the batch norms kept the stand-in's statistics (norm_eval)
+    torch.testing.assert_close(state[PROBE_NORM], coco[PROBE_NORM])
+    # two steps at a tiny lr move the stem's weights a little, not away
+    assert torch.allclose(state[STEM], coco[STEM], atol=1e-2)
+
+
+def test_realfog_coco_trunk_set_end_to_end(fake_coco_yolox, tmp_path):
+    fog = str(tmp_path / 'fog')
+    tiny_fog_folder(fog, num_images=6)
+    runs = str(tmp_path / 'runs')
+    rows = ['Cascade R-CNN, COCO trunk', 'CBNet-PT, COCO trunk',
+            'Cascade R-CNN, COCO trunk + PAFPN',
+            'Cascade R-CNN, COCO trunk, frozen stem']
+    record = load_tool('analysis_tools/compare_recipes.py').main(
+        ['--set', 'realfog_coco_trunk', '--data-root', fog, '--img-scale',
+         '160', '96', '--work-dir', runs, '--only'] + rows + FAST +
+        ['--cfg-options'] + TEST_IN_PROCESS)
+    assert [r['recipe'] for r in record['runs']] == rows
+    assert record['summary']['columns'] == [
+        'box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
+    for run in record['runs']:
+        assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0
+        state = torch.load(rc.checkpoint_file(runs, run['recipe'], 0,
+                                              BUDGET),
+                           map_location='cpu')['state_dict']
+        started_from(state, fake_coco_yolox)
+        if run['recipe'].endswith('frozen stem'):
+            torch.testing.assert_close(state[STEM], fake_coco_yolox[STEM])
+        if 'PAFPN' in run['recipe']:
+            assert 'neck.0.out_convs.0.conv.weight' in state
+
+
+def test_coco_street_coco_trunk_set_end_to_end(
+        cityscapes_like_root, fake_coco_yolox, tmp_path):
+    fake_coco(cityscapes_like_root, str(tmp_path / 'coco'))
+    load_tool('dataset_converters/coco_street.py').main(
+        [str(tmp_path / 'coco'), str(tmp_path / 'street')])
+    runs = str(tmp_path / 'runs')
+    row = 'CBNet-PT, COCO trunk'
+    record = load_tool('analysis_tools/compare_recipes.py').main(
+        ['--set', 'coco_street_coco_trunk', '--data-root',
+         str(tmp_path / 'street'), '--img-scale', '160', '96', '--work-dir',
+         runs, '--only', row] + FAST + ['--cfg-options'] + TEST_IN_PROCESS)
+    assert [r['recipe'] for r in record['runs']] == [row]
+    assert record['summary']['columns'] == [
+        'box AP', 'box AP50', 'mask AP', 'mask AP50', 'mIoU']
+    metrics = record['runs'][0]['metrics']['coco street']
+    assert 'coco/segm_mAP' in metrics and 'cityscapes/mIoU' in metrics
+    state = torch.load(rc.checkpoint_file(runs, row, 0, BUDGET),
+                       map_location='cpu')['state_dict']
+    started_from(state, fake_coco_yolox)
