@@ -15,6 +15,9 @@ plugin (``cbnet_mmdet``: registered components and their helpers only).
 - :mod:`cbnet_tools.markdown`: the markdown tables every report prints.
 - :mod:`cbnet_tools.cpu_distributed`: distributed launches on CPU-only
   machines, for ``tools/train.py`` and ``tools/test.py``.
+- :mod:`cbnet_tools.measure`: wall time and peak memory of calls, what
+  the lab's benchmarks and the peer baseline's ``benchmark_dehazer.py``
+  time with.
 
 Installed with the plugin, never imported by it; it imports the plugin
 (dataset paths) and nothing of the lab or the projects

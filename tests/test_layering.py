@@ -4,8 +4,8 @@
   they import: every module of it registers something or is imported (at
   any depth) by a module that does, or by the package's own
   ``__init__.py``. What registers nothing lives elsewhere: the command
-  lines' library ``cbnet_tools`` (renderer, converter, statistics, tables),
-  the lab ``cbnet_lab`` (measurements), the projects' packages
+  lines' library ``cbnet_tools`` (renderer, converter, statistics, tables,
+  timing), the lab ``cbnet_lab`` (measurements), the projects' packages
   ``cbnet_dehaze`` (the peer baseline) and ``cbnet_serving`` (the serving
   stack).
 * The plugin imports none of them, so a user's
@@ -14,6 +14,12 @@
   the peer baseline import the plugin and ``cbnet_tools`` (not each
   other); the serving project imports the plugin, ``cbnet_tools`` and the
   peer baseline's dark channel estimates, and nothing imports it.
+* The rules read every Python file of the packages, of each project's
+  whole folder (its package, ``tools/`` and ``configs/``, whose
+  ``custom_imports`` count as imports: a project's command lines and
+  configs follow its package's rules) and of the repository's ``tools/``
+  (the plugin, the lab and ``cbnet_tools``; the projects' command lines
+  are in their own ``tools/``).
 * The model, dataset, metric and utility packages of the plugin do not
   reach up into its engine (hooks, runner).
 """
@@ -37,7 +43,7 @@ PACKAGES = {
     'cbnet_dehaze': osp.join('projects', 'peer_dehaze', 'cbnet_dehaze'),
     'cbnet_serving': osp.join('projects', 'edge_serving', 'cbnet_serving'),
 }
-#: The packages each package must not import.
+#: The packages each layer must not import.
 FORBIDDEN = {
     'cbnet_mmdet':
     ['cbnet_tools', 'cbnet_lab', 'cbnet_dehaze', 'cbnet_serving'],
@@ -45,6 +51,18 @@ FORBIDDEN = {
     'cbnet_lab': ['cbnet_dehaze', 'cbnet_serving'],
     'cbnet_dehaze': ['cbnet_lab', 'cbnet_serving'],
     'cbnet_serving': ['cbnet_lab'],
+    'tools': ['cbnet_dehaze', 'cbnet_serving'],
+}
+#: Every folder whose Python files the rules read, with the layer whose
+#: rules it follows: a project's whole folder (package, tools/, configs/)
+#: its package's, the repository's command lines their own.
+LAYERS = {
+    'cbnet_mmdet': 'cbnet_mmdet',
+    'cbnet_tools': 'cbnet_tools',
+    'cbnet_lab': 'cbnet_lab',
+    osp.join('projects', 'peer_dehaze'): 'cbnet_dehaze',
+    osp.join('projects', 'edge_serving'): 'cbnet_serving',
+    'tools': 'tools',
 }
 PROJECT = PACKAGES['cbnet_dehaze']
 #: What the project registers, by registry: the names of the components
@@ -60,22 +78,35 @@ PROJECT_COMPONENTS = {
 
 
 def importers(folder, pattern, root=ROOT):
-    """Files under ``folder`` with an import line matching ``pattern``."""
+    """Files under ``folder`` with an import line matching ``pattern``, or
+    a config naming a module that matches it in ``custom_imports``."""
     found = []
     for path in glob.glob(osp.join(root, folder, '**', '*.py'),
                           recursive=True):
         with open(path) as f:
-            if re.search(r'^\s*(from|import)\s+' + pattern, f.read(),
-                         re.M):
-                found.append(osp.relpath(path, root))
+            text = f.read()
+        if re.search(r'^\s*(from|import)\s+' + pattern, text, re.M) or \
+                re.search(r'custom_imports\s*=\s*dict\(\s*imports\s*=\s*'
+                          r'\[[^\]]*[\'"]' + pattern, text):
+            found.append(osp.relpath(path, root))
     return found
 
 
-@pytest.mark.parametrize('package', sorted(FORBIDDEN))
-def test_packages_import_only_the_layers_below(package):
-    bad = {other: importers(PACKAGES[package], rf'{other}\b')
-           for other in FORBIDDEN[package]}
-    assert not any(bad.values()), f'{package} imports {bad}'
+@pytest.mark.parametrize('folder', sorted(LAYERS))
+def test_folders_import_only_the_layers_below(folder):
+    layer = LAYERS[folder]
+    bad = {other: importers(folder, rf'{other}\b')
+           for other in FORBIDDEN[layer]}
+    assert not any(bad.values()), f'{folder} ({layer}) imports {bad}'
+
+
+def test_the_rules_read_every_project_folder_and_the_tools():
+    projects = glob.glob(osp.join(ROOT, 'projects', '*', ''))
+    assert {osp.relpath(p, ROOT) for p in projects} <= set(LAYERS)
+    assert set(FORBIDDEN) == set(LAYERS.values())
+    for package, folder in PACKAGES.items():
+        assert any(osp.commonpath([folder, f]) == f and LAYERS[f] == package
+                   for f in LAYERS), package
 
 
 def test_the_import_scan_sees_imports():
@@ -84,6 +115,13 @@ def test_the_import_scan_sees_imports():
         assert importers(PACKAGES[package], r'cbnet_mmdet\b'), package
     assert importers(PACKAGES['cbnet_serving'], r'cbnet_dehaze\b')
     assert importers(PACKAGES['cbnet_lab'], r'cbnet_tools\b')
+    # a project's command lines, its configs' custom_imports, tools/
+    tools = osp.join('projects', 'peer_dehaze', 'tools')
+    assert osp.join(tools, 'train_dehazer.py') in importers(
+        tools, r'cbnet_dehaze\b')
+    assert importers(osp.join('projects', 'peer_dehaze', 'configs'),
+                     r'cbnet_dehaze\b')
+    assert importers('tools', r'cbnet_lab\b')
 
 
 @pytest.mark.parametrize(

@@ -5,6 +5,7 @@ difference between the two."""
 import os.path as osp
 
 import pytest
+from config_parts import PART_KEYS, diff, model_of, owner
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
@@ -16,19 +17,6 @@ STOCK = osp.join(PARTS, 'cascade-mask-rcnn_mit-b0-gelu-ope_fpn_1xb4-demo_'
                  'cityscapes-like.py')
 CBNET = osp.join(DEMO, 'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
 
-#: The model keys (flattened, dotted) each part owns.
-PART_KEYS = {
-    'trunk': ('backbone.act_cfg', 'backbone.pos_encoding'),
-    'neck': ('neck', 'data_preprocessor.pad_size_divisor'),
-    'rpn': ('rpn_head', 'train_cfg.rpn', 'train_cfg.rpn_proposal.nms',
-            'test_cfg.rpn.nms'),
-    'iou': ('train_cfg.rcnn.0.assigner', 'train_cfg.rcnn.1.assigner',
-            'train_cfg.rcnn.2.assigner'),
-    'mask stage': ('roi_head.type', ),
-    'mask loss': ('roi_head.mask_head', ),
-    'cls': ('roi_head.bbox_head.0.loss_cls', 'roi_head.bbox_head.1.loss_cls',
-            'roi_head.bbox_head.2.loss_cls'),
-}
 #: (config file, the recipe it starts from, the part it swaps).
 SWAPS = [
     ('../cascade-mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py', 'stock',
@@ -58,41 +46,6 @@ SWAPS = [
     ('cbnet_mit-b0_nasfpn-softmax-cls_1xb4-demo_cityscapes-like.py', 'cbnet',
      'cls'),
 ]
-
-
-def flat(node, prefix=''):
-    """``{'a.b.0.c': leaf}`` of nested dicts and lists."""
-    if isinstance(node, dict):
-        items = node.items()
-    elif isinstance(node, (list, tuple)) and any(
-            isinstance(v, (dict, list, tuple)) for v in node):
-        items = ((str(i), v) for i, v in enumerate(node))
-    else:
-        return {prefix[:-1]: list(node) if isinstance(node, tuple)
-                else node}
-    out = {}
-    for key, value in items:
-        out.update(flat(value, f'{prefix}{key}.'))
-    if not out:
-        out[prefix[:-1]] = type(node)()
-    return out
-
-
-def model_of(path):
-    model = ce.read_config(path).model.to_dict()
-    # the registry scope that an mmdet:: base adds, not a part of the model
-    model.pop('_scope_', None)
-    return flat(model)
-
-
-def owner(key):
-    return [p for p, keys in PART_KEYS.items()
-            if any(key == k or key.startswith(k + '.') for k in keys)]
-
-
-def diff(a, b):
-    return {k for k in set(a) | set(b) if a.get(k, '<absent>') !=
-            b.get(k, '<absent>')}
 
 
 def test_the_parts_are_every_difference_between_the_two_recipes():

@@ -6,7 +6,7 @@ import os.path as osp
 import torch
 from mmdet.registry import MODELS
 from mmengine.registry import init_default_scope
-from test_parts_configs import diff, model_of
+from config_parts import diff, model_of
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc

@@ -5,7 +5,7 @@ config is one of the two with one of them taken from the other, whole."""
 import os.path as osp
 
 import pytest
-from test_parts_configs import diff, model_of, owner
+from config_parts import diff, model_of, owner
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc

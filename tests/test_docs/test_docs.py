@@ -22,9 +22,9 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
+from doc_helpers import ROOT, read_text, readme_snippet
 from tool_helpers import load_tool, tool_file
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 DOCS = [osp.join(ROOT, 'README.md')] + sorted(
     glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True) +
     glob.glob(osp.join(ROOT, 'projects', '*', 'README.md')))
@@ -34,11 +34,6 @@ REPO_DIRS = ('cbnet_mmdet/', 'cbnet_lab/', 'cbnet_tools/', 'configs/',
              'projects/')
 #: What the README snippet must be built on.
 STOCK_MASK_RCNN = 'mmdet::mask_rcnn/mask-rcnn_r50_fpn_1x_coco.py'
-
-
-def _read(path):
-    with open(path, encoding='utf-8') as f:
-        return f.read()
 
 
 def _rel(path):
@@ -70,7 +65,7 @@ def cited_paths(doc):
     (``<...>``, ``...``) are skipped; ``{a,b}``/``{0..5}`` and ``*`` are
     expanded.
     """
-    text = _read(doc)
+    text = read_text(doc)
     doc_dir = osp.dirname(doc)
     candidates = []
     for code in re.findall(r'`([^`\n]+)`', text):
@@ -138,7 +133,7 @@ BASH_BLOCK = re.compile(r'```(?:bash|shell|sh)\n(.*?)```', flags=re.S)
 
 def bash_blocks(doc):
     """The fenced ``bash``/``shell``/``sh`` blocks of a markdown file."""
-    return BASH_BLOCK.findall(_read(doc))
+    return BASH_BLOCK.findall(read_text(doc))
 
 
 #: Placeholders of documented command lines that a parser checks.
@@ -288,7 +283,7 @@ def tabulated_records():
     the committed record."""
     out = []
     for doc in DOCS:
-        text = _read(doc)
+        text = read_text(doc)
         for m in BASH_BLOCK.finditer(text):
             after = re.split(r'\n```|\n#', text[m.end():])[0]
             rows = [line.strip() for line in after.splitlines()
@@ -373,14 +368,6 @@ def test_visualization_doc_tensorboard_command(tmp_path, restore_environ):
     assert len(cfg.visualizer.vis_backends) == 2
 
 
-def readme_snippet():
-    """The README's python block after "Single components in your own
-    MMDet config"."""
-    text = _read(osp.join(ROOT, 'README.md'))
-    start = text.index('Single components in your own MMDet config')
-    return re.search(r'```python\n(.*?)```', text[start:], flags=re.S)[1]
-
-
 def test_readme_snippet_builds_on_mmdet_stock_mask_rcnn(tmp_path):
     snippet = readme_snippet()
     if '_base_' not in snippet:  # as a user puts it under a stock config
@@ -458,7 +445,7 @@ def measured_install_minutes():
     """(every figure, the mmcv compile's) of docs/install.md's "First-
     install time" section, the one place the install times are recorded
     with their dates and clocks (no JSON record holds them)."""
-    text = _read(osp.join(ROOT, 'docs', 'install.md'))
+    text = read_text(osp.join(ROOT, 'docs', 'install.md'))
     section = text.split('## First-install time', 1)[1].split('\n## ')[0]
     rows = [line for line in section.splitlines()
             if line.startswith('| mmcv')]
@@ -476,7 +463,7 @@ def test_one_set_of_mmcv_compile_times():
     assert mmcv, 'docs/install.md: the mmcv row states no time'
     stated = {}
     for name in INSTALL_TIME_FILES:
-        text = ' '.join(_read(osp.join(ROOT, name)).replace('#', ' ')
+        text = ' '.join(read_text(osp.join(ROOT, name)).replace('#', ' ')
                         .split())
         for sentence in re.split(r'(?<=[.!?])\s', text):
             if 'mmcv' in sentence and re.search(r'compil|build',

@@ -15,14 +15,14 @@ from mmdet.datasets import CityscapesDataset
 from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.registry import init_default_scope
-from test_docs import ROOT, _read
+from doc_helpers import ROOT, read_text
 
 import cbnet_mmdet  # noqa: F401
 
 
 def readme_inference_snippet():
     """The README's first python block: the ``DetInferencer`` example."""
-    text = _read(osp.join(ROOT, 'README.md'))
+    text = read_text(osp.join(ROOT, 'README.md'))
     blocks = re.findall(r'```python\n(.*?)```', text, flags=re.S)
     assert blocks and 'DetInferencer' in blocks[0], \
         'the README has no DetInferencer example as its first python block'

@@ -12,7 +12,7 @@ import subprocess
 import sys
 
 import pytest
-from test_docs import ROOT, readme_snippet
+from doc_helpers import ROOT, readme_snippet
 
 pytestmark = pytest.mark.slow
 

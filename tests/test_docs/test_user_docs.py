@@ -28,9 +28,9 @@ import statistics
 import subprocess
 
 import pytest
+from doc_helpers import ROOT, read_text
 from record_helpers import seed_values
 
-ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 README_MAX_LINES = 230
 #: An issue of the development history: ``issue 42``, ``issues 23``,
 #: ``#23`` (not inside a link's anchor), an anchor ``...-issue-42``.
@@ -64,11 +64,6 @@ def user_pages(root=ROOT):
         glob.glob(osp.join(root, 'projects', '*', 'README.md')))
 
 
-def _read(path):
-    with open(path, encoding='utf-8') as f:
-        return f.read()
-
-
 def _rel(path, root=ROOT):
     return osp.relpath(path, root)
 
@@ -84,7 +79,7 @@ def github_anchor(heading):
 def anchors(path):
     """Every anchor of a markdown file's headings (code blocks skipped;
     a repeated heading gets ``-1``, ``-2`` ... as on GitHub)."""
-    text = FENCE.sub('', _read(path))
+    text = FENCE.sub('', read_text(path))
     seen, out = {}, set()
     for line in text.splitlines():
         match = re.match(r'#{1,6} +(.*?) *#* *$', line)
@@ -101,7 +96,7 @@ def broken_links(path, root=ROOT):
     """(link, why) of every relative link of ``path`` whose file is
     missing, lies outside the repository, or whose anchor names no
     heading of the markdown file it points at."""
-    text = FENCE.sub('', _read(path))
+    text = FENCE.sub('', read_text(path))
     bad = []
     for target in LINK.findall(text):
         if '://' in target or target.startswith('mailto:'):
@@ -199,7 +194,7 @@ def repository_text_files(root=ROOT):
 
 
 def test_readme_is_short():
-    lines = _read(osp.join(ROOT, 'README.md')).splitlines()
+    lines = read_text(osp.join(ROOT, 'README.md')).splitlines()
     assert len(lines) <= README_MAX_LINES, (
         f'README.md has {len(lines)} lines (at most {README_MAX_LINES}): '
         'move detail to docs/ and link it')
@@ -210,7 +205,7 @@ def test_docs_index_names_every_page():
     targets = {
         osp.normpath(osp.join(osp.dirname(index),
                               t.split('#')[0]))
-        for t in LINK.findall(_read(index))
+        for t in LINK.findall(read_text(index))
     }
     pages = [p for p in user_pages() if p != index and _rel(p) != 'README.md']
     missing = [_rel(p) for p in pages if p not in targets]
@@ -219,7 +214,7 @@ def test_docs_index_names_every_page():
 
 @pytest.mark.parametrize('page', user_pages(), ids=_rel)
 def test_no_issue_numbers_or_machine_paths(page):
-    found = forbidden_mentions(_read(page))
+    found = forbidden_mentions(read_text(page))
     assert not found, (f'{_rel(page)} names the development history or '
                        f'machines (line, text): {found}')
 
@@ -234,7 +229,8 @@ def test_no_issue_numbers_in_any_text_file():
     for path in files:
         if path == THIS_FILE:
             continue
-        mentions = issue_mentions(_read(path), markdown=path.endswith('.md'))
+        mentions = issue_mentions(read_text(path),
+                                  markdown=path.endswith('.md'))
         if mentions:
             found[_rel(path)] = mentions
     assert not found, ('files that name issues of the development history '
@@ -318,7 +314,7 @@ def test_the_checks_see_what_they_should(tmp_path):
 def test_page_starts_with_its_answer(page):
     """Below its title, every page of docs/ and every project's README
     starts with its current answer: an "In short" paragraph or section."""
-    lines = [line for line in _read(page).splitlines()[1:] if line.strip()]
+    lines = [line for line in read_text(page).splitlines()[1:] if line.strip()]
     assert lines and lines[0].startswith(('In short', '## In short')), (
         f'{_rel(page)} does not start with "In short" under its title: '
         f'{lines[:1]}')
@@ -327,7 +323,7 @@ def test_page_starts_with_its_answer(page):
 def readme_components():
     """(registered names, files) of each row of the README's components
     table; files are relative to ``cbnet_mmdet/``."""
-    text = _read(osp.join(ROOT, 'README.md'))
+    text = read_text(osp.join(ROOT, 'README.md'))
     section = text.split('\n## Components\n', 1)[1].split('\n## ', 1)[0]
     lines = [line for line in section.splitlines() if line.startswith('|')]
     rows = [line.split(' | ') for line in lines[2:]]  # after the header
@@ -396,7 +392,7 @@ def quoted_numbers(cell):
 def readme_results_rows():
     """(row, figure cells, linked records) of the README's results
     table."""
-    text = _read(osp.join(ROOT, 'README.md'))
+    text = read_text(osp.join(ROOT, 'README.md'))
     section = text.split('\n## Results\n', 1)[1].split('\n## ', 1)[0]
     lines = [line for line in section.splitlines() if line.startswith('|')]
     out = []

@@ -1,14 +1,20 @@
 """An oracle detector and a test config around it, for the evaluation
-tools (AP drop, robustness) run through MMEngine's Runner."""
+tools (AP drop, robustness) run through MMEngine's Runner; a seeded
+MobileNetV2 weights file where the pretrained configs look for their
+trunk (``fake_weights``, the pretrained sets' end-to-end tests)."""
+import os
 import os.path as osp
 
 import pytest
 import torch
+from mmdet.models.backbones import MobileNetV2
 from mmdet.models.detectors.base import BaseDetector
 from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.structures import InstanceData
 from torch import nn
+
+from cbnet_tools import pretrained as pt
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 DATASET_CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',
@@ -103,3 +109,15 @@ def _oracle_setup(cityscapes_like_root, tmp_path, drop_on_foggy):
     cfg.dump(cfg_file)
     SEEN.clear()
     return dict(cfg_file=cfg_file, ckpt=ckpt, seen=SEEN)
+
+
+@pytest.fixture
+def fake_weights(tmp_path, monkeypatch):
+    """A seeded MobileNetV2 saved where the configs look for the trunk."""
+    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
+    os.makedirs(pt.pretrained_dir())
+    torch.manual_seed(1)
+    model = MobileNetV2()
+    torch.save(dict(state_dict=model.state_dict()),
+               pt.pretrained_path('mobilenet_v2'))
+    return model.state_dict()

@@ -6,7 +6,7 @@ models started from the stand-in's trunk and kept its batch-norm
 statistics."""
 import pytest
 import torch
-from test_pretrained_sets import fake_coco
+from set_helpers import fake_coco
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import recipe_comparison as rc

@@ -15,9 +15,7 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.runner import Runner
-from test_pretrained_sets import fake_coco
-from test_pretrained_sets import fake_weights  # noqa: F401 (a fixture)
-from test_realfog import ROOT, save_untrained_dehazer
+from set_helpers import ROOT, fake_coco, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import ap_drop as ad
@@ -59,7 +57,7 @@ def ceiling_record(path, box_ap=(12.5, 8.0)):
 
 
 @pytest.mark.slow
-def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
+def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,
                                      tmp_path, monkeypatch):
     street, fog = tiny_data
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
@@ -179,7 +177,7 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
 
 @pytest.mark.slow
 def test_generated_to_real_set_end_to_end(cityscapes_like_root, tiny_data,
-                                          fake_weights,  # noqa: F811
+                                          fake_weights,
                                           tmp_path):
     """Item 3: trained on the generated scenes (clear, or their depth fog),
     tested on generated clear and foggy val, then on real fog."""

@@ -2,7 +2,8 @@
 ``coco_street`` (real masks: COCO json -> tools/dataset_converters/
 coco_street.py -> its recipes, mask AP / box AP / mIoU) and
 ``realfog_pretrained`` (a VOC folder, box AP / AP50 / AP_s/m/l), each
-with a fake MobileNetV2 weights file built here (no wheel, no network)."""
+with a fake MobileNetV2 weights file (``fake_weights``, conftest.py; no
+wheel, no network)."""
 import json
 import os
 import os.path as osp
@@ -10,64 +11,13 @@ import platform
 
 import pytest
 import torch
-from mmdet.models.backbones import MobileNetV2
+from set_helpers import fake_coco
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import recipe_comparison as rc
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
 from cbnet_tools import pretrained as pt
-
-#: The project's class -> a COCO category (id, name); rider, which COCO
-#: lacks, becomes a class the converter drops.
-TO_COCO = {'person': (1, 'person'), 'bicycle': (2, 'bicycle'),
-           'car': (3, 'car'), 'motorcycle': (4, 'motorcycle'),
-           'bus': (6, 'bus'), 'train': (7, 'train'), 'truck': (8, 'truck'),
-           'rider': (41, 'skateboard')}
-
-
-@pytest.fixture
-def fake_weights(tmp_path, monkeypatch):
-    """A seeded MobileNetV2 saved where the configs look for the trunk."""
-    monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'weights'))
-    os.makedirs(pt.pretrained_dir())
-    torch.manual_seed(1)
-    model = MobileNetV2()
-    torch.save(dict(state_dict=model.state_dict()),
-               pt.pretrained_path('mobilenet_v2'))
-    return model.state_dict()
-
-
-def fake_coco(cityscapes_like_root, out):
-    """The tiny generated set's train + val as one COCO instances file
-    with COCO's category ids and names (photos of ``leftImg8bit``)."""
-    images, anns = [], []
-    for split in ('train', 'val'):
-        with open(osp.join(cityscapes_like_root, 'annotations',
-                           f'instancesonly_filtered_gtFine_{split}.json')) \
-                as f:
-            coco = json.load(f)
-        names = {c['id']: c['name'] for c in coco['categories']}
-        offset = 1000 * len(images) + 1000
-        for img in coco['images']:
-            img = dict(img, id=img['id'] + offset,
-                       file_name=osp.join(split, img['file_name'])
-                       if not img['file_name'].startswith(split) else
-                       img['file_name'])
-            images.append(img)
-        for ann in coco['annotations']:
-            anns.append(dict(ann, id=ann['id'] + offset,
-                             image_id=ann['image_id'] + offset,
-                             category_id=TO_COCO[
-                                 names[ann['category_id']]][0]))
-    os.makedirs(osp.join(out, 'annotations'))
-    os.symlink(osp.join(cityscapes_like_root, 'leftImg8bit'),
-               osp.join(out, 'images'))
-    with open(osp.join(out, 'annotations', 'instances.json'), 'w') as f:
-        json.dump(dict(images=images, annotations=anns, categories=[
-            dict(id=i, name=n, supercategory='x')
-            for i, n in sorted(TO_COCO.values())]), f)
-    return images, anns
 
 
 def test_coco_street_converter_and_set_end_to_end(

@@ -8,8 +8,8 @@ import os.path as osp
 import numpy as np
 import pytest
 import torch
-from mmdet.registry import MODELS
 from mmengine.config import Config
+from set_helpers import save_untrained_dehazer
 from tool_helpers import load_tool
 
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
@@ -175,20 +175,6 @@ def test_reference_condition_and_mixing(tmp_path):
     with pytest.raises(FileNotFoundError, match='give its folder'):
         rc.compare(realfog, [0], ce.Budget(iters=1), str(tmp_path / 'no'),
                    [], str(tmp_path / 'out'))
-
-
-def save_untrained_dehazer(path):
-    """An initialised demo dehazer where the realfog configs load it."""
-    import os
-
-    import cbnet_dehaze  # noqa: F401  (registers the dehazer)
-    cfg = Config.fromfile(osp.join(ROOT, 'projects', 'peer_dehaze',
-                                   'configs', '_base_',
-                                   'attention_dehazer.py'))
-    torch.manual_seed(0)
-    dehazer = MODELS.build(cfg.dehazer)
-    os.makedirs(osp.dirname(path), exist_ok=True)
-    torch.save({'state_dict': dehazer.state_dict()}, path)
 
 
 @pytest.mark.slow

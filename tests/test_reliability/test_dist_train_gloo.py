@@ -14,8 +14,8 @@ from mmengine.registry import init_default_scope
 from mmengine.runner import load_checkpoint
 
 import cbnet_mmdet  # noqa: F401  (registers; checkpoint allow-list)
+from checkpoint_diff import differences
 from tiny_configs import REPO, demo_cfg, subprocess_env, write_cfg
-from test_resume_exact import differences
 
 
 @pytest.mark.slow  # ~30 s on 2 cores (2 processes, 2 iterations each)

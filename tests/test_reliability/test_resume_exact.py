@@ -16,29 +16,12 @@ from mmengine.runner import Runner
 
 import cbnet_mmdet  # noqa: F401  (registers; checkpoint allow-list)
 import helper_hooks  # noqa: F401  (CBNetTestCrashHook)
+from checkpoint_diff import differences
 from tiny_configs import demo_cfg, subprocess_env, train_cmd, write_cfg
 
 #: 2 epochs of 2 iterations; the interrupted run dies before iteration 4
 #: (0-based 3), i.e. in the middle of epoch 2, after epoch_1.pth.
 KILL_AT = 3
-
-
-def differences(a, b, path='') -> list:
-    """Paths at which two nested checkpoint structures differ."""
-    if isinstance(a, torch.Tensor):
-        return [] if torch.equal(a, b) else [path]
-    if isinstance(a, dict):
-        if a.keys() != b.keys():
-            return [f'{path}: keys {sorted(a.keys() ^ b.keys())}']
-        return [d for k in a for d in differences(a[k], b[k], f'{path}.{k}')]
-    if isinstance(a, (list, tuple)):
-        if len(a) != len(b):
-            return [f'{path}: lengths {len(a)} != {len(b)}']
-        return [
-            d for i, (x, y) in enumerate(zip(a, b))
-            for d in differences(x, y, f'{path}[{i}]')
-        ]
-    return [] if a == b else [f'{path}: {a!r} != {b!r}']
 
 
 def assert_same_training_state(ckpt_a: str, ckpt_b: str) -> dict:

@@ -22,7 +22,7 @@ import torch
 from mmdet.registry import MODELS
 
 import cbnet_dehaze  # noqa: F401  (registers the dehazers)
-from cbnet_lab.benchmark import PeakMemory, summarize, time_calls
+from cbnet_tools.measure import PeakMemory, summarize, time_calls
 
 DEHAZERS = dict(
     attention=dict(type='CBNetAttentionDehazer'),

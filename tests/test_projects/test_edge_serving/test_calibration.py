@@ -14,7 +14,7 @@ import json
 
 import numpy as np
 import pytest
-from test_offload import cocoeval_ap
+from serving_helpers import cocoeval_ap
 from tool_helpers import load_tool
 
 from cbnet_serving.calibration import (ScoreCalibration, coco_boxes,

@@ -1,25 +1,10 @@
 """Input checks of the server (cbnet_serving.codec)."""
-import struct
-import zlib
-
 import cv2
 import numpy as np
 import pytest
+from serving_helpers import png_header
 
 from cbnet_serving.codec import BadImage, decode_image
-
-
-def png_header(width: int, height: int) -> bytes:
-    """A PNG whose header claims ``width x height`` (the pixel data is a
-    few bytes: nothing that size is ever allocated)."""
-
-    def chunk(kind, data):
-        return (struct.pack('>I', len(data)) + kind + data +
-                struct.pack('>I', zlib.crc32(kind + data) & 0xffffffff))
-
-    ihdr = struct.pack('>IIBBBBB', width, height, 8, 2, 0, 0, 0)
-    return (b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', ihdr) +
-            chunk(b'IDAT', zlib.compress(b'\0' * 64)) + chunk(b'IEND', b''))
 
 
 def test_decodes_png_and_jpeg_to_bgr():

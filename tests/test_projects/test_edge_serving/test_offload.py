@@ -2,8 +2,9 @@
 projects/edge_serving/tools/offload_eval.py).
 
 Two fake route.py runs over a stream of clear and foggy frames of two
-annotated images: the server predicts the ground truth everywhere, the
-local model only on clear frames. AP is checked against pycocotools'
+annotated images (``runs``, conftest.py; the stream is
+serving_helpers.py's): the server predicts the ground truth everywhere,
+the local model only on clear frames. AP is checked against pycocotools'
 COCOeval called directly (an independent reference), and against what it
 must be: perfect when every foggy frame is offloaded.
 """
@@ -11,115 +12,14 @@ import copy
 import json
 
 import numpy as np
-import pycocotools.mask as mask_utils
 import pytest
-from pycocotools.coco import COCO
-from pycocotools.cocoeval import COCOeval
+from serving_helpers import (CLASSES, FRAMES, cocoeval_ap, img_of, truth,
+                             write_run)
 from tool_helpers import load_tool
 
 from cbnet_serving.offload import (check_runs, offload_curve, policy_offloads,
                                    read_run, score, stream_annotations,
                                    to_markdown)
-
-CLASSES = ['person', 'rider', 'car', 'truck', 'bus', 'train', 'motorcycle',
-           'bicycle']
-H, W = 40, 60
-# (image, category id, [x, y, w, h]); the categories use Cityscapes' ids
-OBJECTS = [(1, 26, [5, 5, 20, 10]), (1, 24, [30, 8, 8, 20]),
-           (2, 26, [10, 20, 30, 12])]
-
-
-def annotations():
-    images = [dict(id=i, file_name=f'city/s{i}_leftImg8bit.png', height=H,
-                   width=W) for i in (1, 2)]
-    anns = []
-    for n, (img, cat, (x, y, w, h)) in enumerate(OBJECTS, 1):
-        poly = [x, y, x + w, y, x + w, y + h, x, y + h]
-        anns.append(dict(id=n, image_id=img, category_id=cat,
-                         bbox=[x, y, w, h], area=w * h, iscrowd=0,
-                         segmentation=[poly]))
-    cats = [dict(id=i, name=c) for i, c in zip(
-        (24, 25, 26, 27, 28, 31, 32, 33), CLASSES)]
-    return dict(images=images, annotations=anns, categories=cats)
-
-
-def truth(img, classes=CLASSES):
-    """A perfect prediction of image ``img`` in pred2dict's fields."""
-    labels, boxes, masks = [], [], []
-    names = {24: 'person', 26: 'car'}
-    for i, cat, (x, y, w, h) in OBJECTS:
-        if i != img:
-            continue
-        m = np.zeros((H, W), np.uint8, order='F')
-        m[y:y + h, x:x + w] = 1
-        rle = mask_utils.encode(m)
-        rle['counts'] = rle['counts'].decode()
-        labels.append(classes.index(names[cat]))
-        boxes.append([x, y, x + w, y + h])
-        masks.append(rle)
-    return dict(labels=labels, scores=[0.9] * len(labels), bboxes=boxes,
-                masks=masks)
-
-
-NONE = dict(labels=[], scores=[], bboxes=[], masks=[])
-FRAMES = [f'{c}/s{i}_leftImg8bit{s}.png' for i in (1, 2)
-          for c, s in (('clear', ''), ('fog', '_foggy_beta_0.02'))]
-
-
-def write_run(folder, mode, preds, classes=CLASSES, where='server'):
-    folder.mkdir()
-    with open(folder / 'results.jsonl', 'w') as f:
-        for frame in FRAMES:
-            foggy = 'foggy' in frame
-            f.write(json.dumps(dict(
-                frame=frame, where=where if mode != 'local' else 'local',
-                reason='', transmission=0.4 if foggy else 0.9,
-                local_top_score=0.2 if foggy else 0.9,
-                seconds=2.0 if mode == 'server' else 0.5,
-                prediction=preds(frame))) + '\n')
-    info = dict(classes=classes)
-    json.dump(dict(router=dict(mode=mode), local=dict(classes=CLASSES),
-                   server=None if mode == 'local' else info),
-              open(folder / 'run.json', 'w'))
-    return str(folder)
-
-
-def img_of(frame):
-    return int(frame.split('/s')[1][0])
-
-
-@pytest.fixture
-def runs(tmp_path):
-    ann = tmp_path / 'ann.json'
-    json.dump(annotations(), open(ann, 'w'))
-    local = write_run(tmp_path / 'local', 'local',
-                      lambda f: NONE if 'foggy' in f else truth(img_of(f)))
-    server = write_run(tmp_path / 'server', 'server',
-                       lambda f: truth(img_of(f)))
-    return dict(ann=str(ann), local=local, server=server, tmp=tmp_path)
-
-
-def cocoeval_ap(gt, preds, iou_type):
-    """The reference: pycocotools' COCOeval on the same stream."""
-    coco = COCO()
-    coco.dataset = copy.deepcopy(gt)
-    coco.createIndex()
-    cat_ids = [c['id'] for c in gt['categories']]
-    dets = []
-    for img, pred in zip(gt['images'], preds):
-        for label, score_, box, m in zip(pred['labels'], pred['scores'],
-                                         pred['bboxes'], pred['masks']):
-            x1, y1, x2, y2 = box
-            dets.append(dict(image_id=img['id'], category_id=cat_ids[label],
-                             score=score_, bbox=[x1, y1, x2 - x1, y2 - y1],
-                             segmentation=m))
-    if not dets:
-        return 0.0
-    ev = COCOeval(coco, coco.loadRes(dets), iou_type)
-    ev.evaluate()
-    ev.accumulate()
-    ev.summarize()
-    return 100 * ev.stats[0]
 
 
 def test_stream_annotations_one_image_per_frame(runs):

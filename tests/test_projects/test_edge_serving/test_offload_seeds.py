@@ -1,16 +1,17 @@
 """Offload tables of several seeds of the edge model
 (cbnet_serving.offload_seeds, projects/edge_serving/tools/offload_seeds.py).
 
-Two "seeds" of the local model over test_offload's stream: one that sees
-the clear frames only, one that sees nothing. Each seed's table comes from
-offload_curve; the combined rows are checked against means and stds
-computed here from those tables.
+Two "seeds" of the local model over the offload stream (serving_helpers.py,
+the ``runs`` fixture of conftest.py): one that sees the clear frames only,
+one that sees nothing. Each seed's table comes from offload_curve; the
+combined rows are checked against means and stds computed here from those
+tables.
 """
 import json
 
 import numpy as np
 import pytest
-from test_offload import FRAMES, NONE, img_of, runs, truth, write_run  # noqa
+from serving_helpers import NONE, write_run
 from tool_helpers import load_tool
 
 from cbnet_serving.offload import offload_curve
@@ -18,7 +19,7 @@ from cbnet_serving.offload_seeds import combine, row_key, to_markdown
 
 
 @pytest.fixture
-def two_seeds(runs):  # noqa: F811
+def two_seeds(runs):
     blind = write_run(runs['tmp'] / 'blind', 'local', lambda f: NONE)
     out = []
     for local in (runs['local'], blind):

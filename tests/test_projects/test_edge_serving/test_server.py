@@ -173,7 +173,7 @@ def test_concurrent_requests_are_batched_and_equal(server, frames):
 
 
 def test_bad_input_4xx_and_server_keeps_serving(server, frames):
-    from test_codec import png_header
+    from serving_helpers import png_header
     url = server['url'] + '/predict'
     cases = [
         (b'', 'image/png', 400),
@@ -222,7 +222,7 @@ def test_router_end_to_end_on_a_real_format_stream(server, demo_ckpt,
     the same model and weights here, so every policy must score what
     always-local scores: whichever frames are offloaded, the predictions
     are the same."""
-    from test_stream import tiny_coco
+    from serving_helpers import tiny_coco
 
     from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
     fog = str(tmp_path / 'fog')

@@ -13,10 +13,8 @@ import json
 import os
 import os.path as osp
 
-import mmcv
-import numpy as np
 import pytest
-from test_offload import cocoeval_ap
+from serving_helpers import cocoeval_ap, tiny_coco
 from tool_helpers import load_tool
 
 from cbnet_mmdet.datasets.voc_fog import CITYSCAPES_CLASSES
@@ -24,29 +22,6 @@ from cbnet_serving.offload import (condition_order, frame_condition,
                                    offload_curve, stream_annotations)
 from cbnet_serving.stream import build_stream, list_images, voc_frames
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
-
-
-def tiny_coco(root):
-    """Three photos in a COCO file: two cars, a person, a dog (not a
-    street class: dropped)."""
-    os.makedirs(osp.join(root, 'images'))
-    images, anns = [], []
-    objects = {1: [(3, [5, 5, 30, 20])], 2: [(1, [40, 10, 10, 30]),
-                                             (3, [2, 2, 20, 10])],
-               3: [(18, [10, 10, 20, 20])]}
-    for i in (1, 2, 3):
-        name = f'{i:012d}.jpg'
-        mmcv.imwrite(np.full((60, 80, 3), 40 * i, np.uint8),
-                     osp.join(root, 'images', name))
-        images.append(dict(id=i, file_name=name, width=80, height=60))
-        for cat, box in objects[i]:
-            anns.append(dict(id=len(anns) + 1, image_id=i, category_id=cat,
-                             bbox=box, area=box[2] * box[3], iscrowd=0))
-    ann = osp.join(root, 'instances_val.json')
-    json.dump(dict(images=images, annotations=anns, categories=[
-        dict(id=1, name='person'), dict(id=3, name='car'),
-        dict(id=18, name='dog')]), open(ann, 'w'))
-    return ann, osp.join(root, 'images')
 
 
 @pytest.fixture

@@ -7,8 +7,7 @@ reason, or a normal training step; never silent, never a crash)."""
 import json
 
 import pytest
-
-from tiny_configs import load_tool
+from tool_helpers import load_tool
 
 from cbnet_lab import fuzz_inputs
 
