@@ -10,6 +10,9 @@ from mmcv.transforms import BaseTransform
 from mmcv.transforms.utils import cache_randomness
 from mmdet.registry import TRANSFORMS
 
+from cbnet_mmdet.utils import scattering
+from cbnet_mmdet.utils.scattering import ATMOSPHERIC_LIGHT
+
 #: Defaults of the row prior's camera: those of the generated scenes (and
 #: close to Cityscapes' camera), so a ``beta`` means the same fog here and in
 #: the project's depth-rendered Foggy Cityscapes-like images.
@@ -31,8 +34,6 @@ CEILING_HEIGHT = 2.0
 #: Distance of the horizon row, the far clamp of both planes, metres (the
 #: generated scenes' sky).
 MAX_DISTANCE = 600.0
-#: Atmospheric light of the generated foggy images, RGB in [0, 1].
-ATMOSPHERIC_LIGHT = (0.82, 0.83, 0.85)
 #: Dark channel estimate of the atmospheric light (He et al., 2009): window
 #: side in pixels and fraction of the brightest dark-channel pixels searched.
 DARK_CHANNEL_PATCH = 15
@@ -49,10 +50,7 @@ def _check_beta(beta) -> Union[float, Tuple[float, float]]:
     """A fixed ``beta`` or a ``(low, high)`` range, both in 1/m, >= 0."""
     name = 'CBNetAddFog'
     if _is_number(beta):
-        if not math.isfinite(beta) or beta < 0:
-            raise ValueError(f'{name}: beta must be a finite number >= 0 '
-                             f'(1/m), got {beta}')
-        return float(beta)
+        return scattering.check_beta(beta, name)
     if isinstance(beta, (tuple, list)) and len(beta) == 2 and all(
             _is_number(b) for b in beta):
         low, high = beta
@@ -90,7 +88,8 @@ class CBNetAddFog(BaseTransform):
     """Add homogeneous fog to a photograph that has no depth map.
 
     The atmospheric scattering model that renders Foggy Cityscapes
-    (Sakaridis et al., IJCV 2018) and the project's generated foggy scenes::
+    (Sakaridis et al., IJCV 2018) and the project's generated foggy scenes
+    (:mod:`cbnet_mmdet.utils.scattering`, the renderer's too)::
 
         I = J t + 255 A (1 - t),    t = exp(-beta d)
 
@@ -229,8 +228,9 @@ class CBNetAddFog(BaseTransform):
         return np.minimum(depth, self.max_distance)
 
     def transmission(self, height: int, width: int, beta: float) -> np.ndarray:
-        """``t = exp(-beta d(v))`` per row, ``float64[H]`` in (0, 1]."""
-        return np.exp(-beta * self.distance(height, width))
+        """``t = exp(-beta d(v))`` per row, ``float64[H]`` in (0, 1]
+        (:func:`cbnet_mmdet.utils.scattering.transmission`)."""
+        return scattering.transmission(self.distance(height, width), beta)
 
     def light(self, img: np.ndarray) -> np.ndarray:
         """``A`` for ``img`` in its channel order, ``float64[3]``, [0, 1]."""
@@ -296,11 +296,10 @@ class CBNetAddFog(BaseTransform):
         # float images keep their precision
         ftype = np.float64 if img.dtype == np.float64 else np.float32
         t = self.transmission(h, w, beta).astype(ftype)[:, None]  # [H, 1]
-        haze = (255.0 * light).astype(ftype)[None, :] * (1 - t)  # [H, 3]
         # rows of W * 3 values: contiguous operands (broadcasting over a
-        # last axis of 3 is several times slower)
-        out = img.reshape(h, w * 3) * t
-        out += np.tile(haze, (1, w))
+        # last axis of 3 is several times slower); A on the 0-255 scale
+        haze_light = np.tile((255.0 * light).astype(ftype), w)  # [W * 3]
+        out = scattering.scatter(img.reshape(h, w * 3), t, haze_light)
         if img.dtype == np.uint8:
             # a convex combination of two values in [0, 255]: no clipping
             np.rint(out, out=out)
