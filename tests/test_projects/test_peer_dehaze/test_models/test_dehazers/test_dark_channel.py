@@ -25,12 +25,17 @@ def test_box_mean_matches_clipped_window_mean(radius):
     np.testing.assert_allclose(got, numpy_box_mean(x, radius), atol=1e-12)
 
 
-@pytest.mark.parametrize('size', [1, 3, 15])
+@pytest.mark.parametrize('size', [1, 3, 5, 7, 15, 31])
 def test_min_filter_matches_scipy(size):
-    x = np.random.RandomState(size).rand(2, 3, 11, 6).astype(np.float32)
-    got = min_filter(torch.from_numpy(x), size).numpy()
-    ref = ndimage.minimum_filter(x, size=(1, 1, size, size), mode='nearest')
-    np.testing.assert_array_equal(got, ref)
+    """Exactly, at every window side (powers of two and between them), on
+    images smaller and larger than the window."""
+    for k, shape in enumerate([(2, 3, 11, 6), (1, 1, 1, 1), (1, 1, 5, 40),
+                               (3, 1, 40, 33)]):
+        x = np.random.RandomState(size + k).rand(*shape).astype(np.float32)
+        got = min_filter(torch.from_numpy(x), size).numpy()
+        ref = ndimage.minimum_filter(x, size=(1, 1, size, size),
+                                     mode='nearest')
+        np.testing.assert_array_equal(got, ref)
 
 
 def test_guided_filter_matches_numpy_rederivation():
