@@ -11,7 +11,9 @@ model::
 distance in metres. Every fog of the project is this model: the renderer of
 the generated scenes (``cbnet_tools.synthetic.add_fog``, ``d`` the scene's
 depth), the transform ``CBNetAddFog`` (``d`` a prior from the image row) and,
-solved for ``J``, the peer baseline's dark channel dehazer.
+solved for ``J``, the peer baseline's dark channel dehazer; the dark
+channel prior's estimates of ``A`` and ``t`` are in
+:mod:`cbnet_mmdet.utils.dark_channel`.
 
 Not a registered component: the helper of ``CBNetAddFog``, which imports it.
 """

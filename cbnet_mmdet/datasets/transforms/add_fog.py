@@ -4,13 +4,13 @@ import math
 import numbers
 from typing import Optional, Sequence, Tuple, Union
 
-import cv2
 import numpy as np
+import torch
 from mmcv.transforms import BaseTransform
 from mmcv.transforms.utils import cache_randomness
 from mmdet.registry import TRANSFORMS
 
-from cbnet_mmdet.utils import scattering
+from cbnet_mmdet.utils import dark_channel, scattering
 from cbnet_mmdet.utils.scattering import ATMOSPHERIC_LIGHT
 
 #: Defaults of the row prior's camera: those of the generated scenes (and
@@ -34,10 +34,6 @@ CEILING_HEIGHT = 2.0
 #: Distance of the horizon row, the far clamp of both planes, metres (the
 #: generated scenes' sky).
 MAX_DISTANCE = 600.0
-#: Dark channel estimate of the atmospheric light (He et al., 2009): window
-#: side in pixels and fraction of the brightest dark-channel pixels searched.
-DARK_CHANNEL_PATCH = 15
-DARK_CHANNEL_TOP = 0.001
 
 LightType = Union[float, Sequence[float], str]
 
@@ -155,9 +151,10 @@ class CBNetAddFog(BaseTransform):
             ``channel_order``); or ``'dark_channel'``: estimated on each
             image as He et al. do, the brightest pixel (largest B+G+R) among
             the 0.1% brightest pixels of its dark channel (minimum over
-            channels and a 15 x 15 window; numpy and OpenCV on the image,
-            so the transform needs no model code). Defaults to (0.82, 0.83,
-            0.85), the light of the generated foggy scenes.
+            channels and a 15 x 15 window; the estimate of
+            :mod:`cbnet_mmdet.utils.dark_channel`, which the peer
+            baseline's dehazer uses too, in torch on the CPU). Defaults to
+            (0.82, 0.83, 0.85), the light of the generated foggy scenes.
         channel_order (str): ``'bgr'`` (``LoadImageFromFile``'s default) or
             ``'rgb'``: where R, G, B of ``atmospheric_light`` go.
         camera_height (float): ``h``, metres, > 0. Defaults to 1.3.
@@ -241,17 +238,21 @@ class CBNetAddFog(BaseTransform):
 
     @staticmethod
     def _dark_channel_light(img: np.ndarray) -> np.ndarray:
-        kernel = np.ones((DARK_CHANNEL_PATCH, ) * 2, np.uint8)
-        # minimum over channels (np.minimum: ~20x faster than .min(axis=2)
-        # on H x W x 3), then over windows: erosion with borders replicated,
-        # i.e. windows clipped to the image
-        dark = np.minimum(np.minimum(img[..., 0], img[..., 1]), img[..., 2])
-        dark = cv2.erode(dark, kernel, borderType=cv2.BORDER_REPLICATE).ravel()
-        k = max(1, int(dark.size * DARK_CHANNEL_TOP))
-        top = np.argpartition(dark, dark.size - k)[dark.size - k:]
-        pixels = img.reshape(-1, 3)[top].astype(np.float64)
-        best = pixels[pixels.sum(axis=1).argmax()]
-        return np.clip(best / 255.0, 0.0, 1.0)
+        """He et al.'s ``A`` of ``img``, in [0, 1]
+        (:mod:`cbnet_mmdet.utils.dark_channel` with its window and
+        fraction). Where pixels tie at the 0.1% cut of the dark channel,
+        which of them are searched is ``torch.topk``'s choice, as in the
+        peer baseline's dehazer."""
+        # a [1, 3, H, W] copy in the image's channel order (minimum and
+        # R + G + B do not depend on it); float32 holds uint8 values and
+        # their sums exactly, float images are searched in float64
+        dtype = np.float32 if img.dtype == np.uint8 else np.float64
+        x = torch.from_numpy(
+            np.array(img.transpose(2, 0, 1), dtype=dtype, order='C'))[None]
+        with torch.no_grad():
+            best = dark_channel.atmospheric_light(
+                x, dark_channel.dark_channel(x))[0]
+        return np.clip(best.numpy().astype(np.float64) / 255.0, 0.0, 1.0)
 
     @cache_randomness
     def _sample_beta(self) -> float:

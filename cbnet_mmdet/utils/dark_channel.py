@@ -1,22 +1,30 @@
 """The dark channel prior's estimates (He, Sun, Tang, CVPR 2009 / TPAMI
 2011): dark channel, atmospheric light and the guided-filter-refined
-transmission of the scattering model ``I = J t + A (1 - t)``.
+transmission of the scattering model ``I = J t + A (1 - t)``
+(:mod:`cbnet_mmdet.utils.scattering`).
 
-Not a registered component: the helper of the peer baseline's registered
-training-free dehazer ``CBNetDarkChannelPrior`` (beside it), which
-recovers ``J`` from ``A`` and ``t``. It lives here, with the one registered
-component built on it, rather than in the plugin (no CBNet component uses
-it) or in the serving project (a model package must not depend on a
-deployment one). The edge-serving project's haze score
-(:class:`cbnet_serving.haze.HazeEstimator`, the mean of ``t``) imports it
-from here.
+Not a registered component: the one home of these estimates, for every
+caller. ``CBNetAddFog`` (``atmospheric_light='dark_channel'``) takes ``A``
+from :func:`dark_channel` and :func:`atmospheric_light`; the peer baseline's
+training-free dehazer ``CBNetDarkChannelPrior`` (``cbnet_dehaze``) is a
+:class:`DarkChannelPrior` that recovers ``J`` from ``A`` and ``t``; the
+edge-serving project's haze score (``cbnet_serving.haze.HazeEstimator``) is
+the mean of its ``t``. They live in the plugin because a plugin transform
+uses them, and the plugin imports neither project.
 """
+import numbers
+
 import torch
 import torch.nn.functional as F
 from torch import Tensor
 
 #: Rec. 601 luma weights of R, G, B (the guided filter's grey guide).
 LUMA = (0.299, 0.587, 0.114)
+#: He et al.'s dark channel window side, pixels.
+PATCH_SIZE = 15
+#: He et al.'s fraction of the largest dark-channel pixels searched for the
+#: atmospheric light (0.1%).
+TOP_FRACTION = 0.001
 
 
 def _min_along(x: Tensor, size: int, dim: int) -> Tensor:
@@ -104,6 +112,85 @@ def guided_filter(guide: Tensor, src: Tensor, radius: int,
     return box_mean(a, radius) * guide + box_mean(b, radius)
 
 
+def _check_patch_size(patch_size: int, name: str) -> None:
+    if isinstance(patch_size, bool) or \
+            not isinstance(patch_size, numbers.Integral) or \
+            patch_size < 1 or patch_size % 2 == 0:
+        raise ValueError(f'{name}: patch_size must be odd and positive, '
+                         f'got {patch_size}')
+
+
+def _check_images(img: Tensor, name: str) -> None:
+    """Refuse what is not a non-empty ``Tensor[B, 3, H, W]``."""
+    if not isinstance(img, Tensor):
+        raise TypeError(f'{name}: expected a Tensor[B, 3, H, W], got '
+                        f'{type(img).__name__}')
+    if img.dim() != 4 or img.shape[1] != 3:
+        raise ValueError(f'{name}: expected Tensor[B, 3, H, W] (3 colour '
+                         f'channels), got shape {tuple(img.shape)}')
+    if img.numel() == 0:
+        raise ValueError(f'{name}: empty images, shape {tuple(img.shape)}')
+
+
+def dark_channel(img: Tensor, patch_size: int = PATCH_SIZE) -> Tensor:
+    """``D(x) = min_{y in patch(x)} min_c I_c(y)``.
+
+    Args:
+        img (Tensor[B, 3, H, W]): images, any scale (the minimum is exact,
+            so 0-255 and [0, 1] images give the same pixels).
+        patch_size (int): odd window side, pixels; windows are clipped to
+            the image.
+
+    Returns:
+        Tensor[B, 1, H, W].
+
+    Raises:
+        TypeError, ValueError: not a non-empty ``Tensor[B, 3, H, W]``, or
+            an even or non-positive ``patch_size``.
+    """
+    _check_images(img, 'dark_channel')
+    _check_patch_size(patch_size, 'dark_channel')
+    return min_filter(img.amin(dim=1, keepdim=True), patch_size)
+
+
+def atmospheric_light(img: Tensor, dark: Tensor,
+                      top_fraction: float = TOP_FRACTION) -> Tensor:
+    """He et al.'s estimate of ``A``: among the ``top_fraction`` of pixels
+    with the largest dark channel (at least one), the input pixel of
+    highest intensity (R + G + B), per image.
+
+    Args:
+        img (Tensor[B, 3, H, W]): hazy images, any scale.
+        dark (Tensor[B, 1, H, W]): their dark channels
+            (:func:`dark_channel`).
+        top_fraction (float): fraction of the pixels searched, in (0, 1].
+
+    Returns:
+        Tensor[B, 3]: that pixel of each image, ``img``'s scale and dtype,
+        unbounded.
+
+    Raises:
+        TypeError, ValueError: ``img`` not a non-empty
+            ``Tensor[B, 3, H, W]``, ``dark`` not its ``[B, 1, H, W]``, or
+            ``top_fraction`` outside (0, 1].
+    """
+    _check_images(img, 'atmospheric_light')
+    b, _, h, w = img.shape
+    if not isinstance(dark, Tensor) or tuple(dark.shape) != (b, 1, h, w):
+        raise ValueError(f'atmospheric_light: the dark channel must be '
+                         f'Tensor[{b}, 1, {h}, {w}], got '
+                         f'{tuple(getattr(dark, "shape", ()))}')
+    if not 0 < top_fraction <= 1:
+        raise ValueError(f'atmospheric_light: top_fraction must be in '
+                         f'(0, 1], got {top_fraction}')
+    k = max(1, int(h * w * top_fraction))
+    top = dark.reshape(b, -1).topk(k, dim=1).indices  # [B, k]
+    pixels = img.reshape(b, 3, -1).gather(
+        2, top.unsqueeze(1).expand(-1, 3, -1))  # [B, 3, k]
+    best = pixels.sum(dim=1).argmax(dim=1)  # [B]
+    return pixels[torch.arange(b, device=img.device), :, best]
+
+
 class DarkChannelPrior:
     """Dark channel, atmospheric light ``A`` and transmission ``t``.
 
@@ -134,17 +221,15 @@ class DarkChannelPrior:
     """
 
     def __init__(self,
-                 patch_size: int = 15,
+                 patch_size: int = PATCH_SIZE,
                  omega: float = 0.95,
                  t0: float = 0.1,
-                 top_fraction: float = 0.001,
+                 top_fraction: float = TOP_FRACTION,
                  guided_radius: int = 40,
                  guided_eps: float = 1e-3,
                  min_atmosphere: float = 0.05) -> None:
         name = type(self).__name__
-        if patch_size < 1 or patch_size % 2 == 0:
-            raise ValueError(f'{name}: patch_size must be odd and '
-                             f'positive, got {patch_size}')
+        _check_patch_size(patch_size, name)
         if not 0 < omega <= 1 or not 0 < t0 <= 1:
             raise ValueError(f'{name}: omega and t0 must be in (0, 1], '
                              f'got {omega}, {t0}')
@@ -160,8 +245,9 @@ class DarkChannelPrior:
         self.min_atmosphere = min_atmosphere
 
     def dark_channel(self, img: Tensor) -> Tensor:
-        """Tensor[B, 3, H, W] -> dark channel Tensor[B, 1, H, W]."""
-        return min_filter(img.amin(dim=1, keepdim=True), self.patch_size)
+        """Tensor[B, 3, H, W] -> dark channel Tensor[B, 1, H, W]
+        (:func:`dark_channel`)."""
+        return dark_channel(img, self.patch_size)
 
     def atmospheric_light(self, img: Tensor, dark: Tensor) -> Tensor:
         """Estimate ``A`` per image.
@@ -171,16 +257,11 @@ class DarkChannelPrior:
             dark (Tensor[B, 1, H, W]): their dark channels.
 
         Returns:
-            Tensor[B, 3, 1, 1]: atmospheric light, >= ``min_atmosphere``.
+            Tensor[B, 3, 1, 1]: atmospheric light
+            (:func:`atmospheric_light`), >= ``min_atmosphere``.
         """
-        b, _, h, w = img.shape
-        k = max(1, int(h * w * self.top_fraction))
-        top = dark.view(b, -1).topk(k, dim=1).indices  # [B, k]
-        pixels = img.view(b, 3, -1).gather(
-            2, top.unsqueeze(1).expand(-1, 3, -1))  # [B, 3, k]
-        best = pixels.sum(dim=1).argmax(dim=1)  # [B]
-        light = pixels[torch.arange(b, device=img.device), :, best]
-        return light.clamp(min=self.min_atmosphere).view(b, 3, 1, 1)
+        light = atmospheric_light(img, dark, self.top_fraction)
+        return light.clamp(min=self.min_atmosphere).view(-1, 3, 1, 1)
 
     def transmission(self, img: Tensor, light: Tensor) -> Tensor:
         """Refined transmission ``t`` in [t0, 1], Tensor[B, 1, H, W]."""
