@@ -27,7 +27,8 @@ The depth PNG stores, in centimetres, the depth along the optical axis of
 the surface SEEN at each pixel (uint16, 65535 = 655.35 m; sky = 600 m;
 through a bicycle's wheels, what is behind it). The foggy images apply the
 atmospheric scattering model used to build Foggy Cityscapes (Sakaridis et
-al., 2018) to that stored depth: ``I = R t + L (1 - t)``,
+al., 2018; :mod:`cbnet_mmdet.utils.scattering`, the model ``CBNetAddFog``
+applies too) to that stored depth: ``I = R t + L (1 - t)``,
 ``t = exp(-beta d)`` with ``R`` the clear image and ``L`` the atmospheric
 light in [0, 1], ``d`` in metres and ``beta`` in 1/m (visibility
 2.996 / beta: 150 m at 0.02).
@@ -49,15 +50,14 @@ from mmengine.utils import track_parallel_progress, track_progress
 from PIL import Image, ImageChops, ImageDraw
 
 from cbnet_mmdet.datasets.cityscapes_paths import FOGGY_BETAS, foggy_path
+from cbnet_mmdet.utils.scattering import (ATMOSPHERIC_LIGHT, scatter,
+                                          transmission)
 from .scene import (INSTANCE_CLASSES, MIN_HEIGHT_PX, SceneCamera, ScenePolygon,
                     pixel_depth, sample_scene)
 from .texture import render_rgb
 
 #: Cities of each split (real Cityscapes city names).
 CITIES = {'train': ('aachen', 'bochum'), 'val': ('frankfurt', 'lindau')}
-#: Atmospheric light of the foggy images, RGB in [0, 1] (a bright grey,
-#: as estimated for most Foggy Cityscapes images).
-ATMOSPHERIC_LIGHT = (0.82, 0.83, 0.85)
 #: Depth PNG scale: stored value = metres * DEPTH_SCALE.
 DEPTH_SCALE = 100.0
 #: Scenes are redrawn (up to MAX_TRIES times) until each of the 8 classes
@@ -87,7 +87,8 @@ def render_depth(depth_m: np.ndarray) -> np.ndarray:
 def add_fog(rgb: np.ndarray, depth_m: np.ndarray, beta: float,
             light: Sequence[float] = ATMOSPHERIC_LIGHT) -> np.ndarray:
     """Atmospheric scattering model ``I = R t + L (1 - t)``,
-    ``t = exp(-beta d)``.
+    ``t = exp(-beta d)`` (:mod:`cbnet_mmdet.utils.scattering`), on the
+    [0, 1] scale, then rounded to 8 bits.
 
     Args:
         rgb (np.ndarray): ``uint8[H, W, 3]`` clear image ``R``.
@@ -98,8 +99,8 @@ def add_fog(rgb: np.ndarray, depth_m: np.ndarray, beta: float,
     Returns:
         np.ndarray: ``uint8[H, W, 3]`` foggy image.
     """
-    t = np.exp(-beta * depth_m)[..., None]
-    foggy = rgb / 255.0 * t + np.asarray(light, np.float64) * (1 - t)
+    t = transmission(depth_m, beta)[..., None]
+    foggy = scatter(rgb / 255.0, t, np.asarray(light, np.float64))
     return np.clip(np.rint(foggy * 255), 0, 255).astype(np.uint8)
 
 

@@ -4,11 +4,14 @@ import math
 import numbers
 from typing import Optional, Sequence, Tuple, Union
 
-import cv2
 import numpy as np
+import torch
 from mmcv.transforms import BaseTransform
 from mmcv.transforms.utils import cache_randomness
 from mmdet.registry import TRANSFORMS
+
+from cbnet_mmdet.utils import dark_channel, scattering
+from cbnet_mmdet.utils.scattering import ATMOSPHERIC_LIGHT
 
 #: Defaults of the row prior's camera: those of the generated scenes (and
 #: close to Cityscapes' camera), so a ``beta`` means the same fog here and in
@@ -31,12 +34,6 @@ CEILING_HEIGHT = 2.0
 #: Distance of the horizon row, the far clamp of both planes, metres (the
 #: generated scenes' sky).
 MAX_DISTANCE = 600.0
-#: Atmospheric light of the generated foggy images, RGB in [0, 1].
-ATMOSPHERIC_LIGHT = (0.82, 0.83, 0.85)
-#: Dark channel estimate of the atmospheric light (He et al., 2009): window
-#: side in pixels and fraction of the brightest dark-channel pixels searched.
-DARK_CHANNEL_PATCH = 15
-DARK_CHANNEL_TOP = 0.001
 
 LightType = Union[float, Sequence[float], str]
 
@@ -49,10 +46,7 @@ def _check_beta(beta) -> Union[float, Tuple[float, float]]:
     """A fixed ``beta`` or a ``(low, high)`` range, both in 1/m, >= 0."""
     name = 'CBNetAddFog'
     if _is_number(beta):
-        if not math.isfinite(beta) or beta < 0:
-            raise ValueError(f'{name}: beta must be a finite number >= 0 '
-                             f'(1/m), got {beta}')
-        return float(beta)
+        return scattering.check_beta(beta, name)
     if isinstance(beta, (tuple, list)) and len(beta) == 2 and all(
             _is_number(b) for b in beta):
         low, high = beta
@@ -90,7 +84,8 @@ class CBNetAddFog(BaseTransform):
     """Add homogeneous fog to a photograph that has no depth map.
 
     The atmospheric scattering model that renders Foggy Cityscapes
-    (Sakaridis et al., IJCV 2018) and the project's generated foggy scenes::
+    (Sakaridis et al., IJCV 2018) and the project's generated foggy scenes
+    (:mod:`cbnet_mmdet.utils.scattering`, the renderer's too)::
 
         I = J t + 255 A (1 - t),    t = exp(-beta d)
 
@@ -156,9 +151,10 @@ class CBNetAddFog(BaseTransform):
             ``channel_order``); or ``'dark_channel'``: estimated on each
             image as He et al. do, the brightest pixel (largest B+G+R) among
             the 0.1% brightest pixels of its dark channel (minimum over
-            channels and a 15 x 15 window; numpy and OpenCV on the image,
-            so the transform needs no model code). Defaults to (0.82, 0.83,
-            0.85), the light of the generated foggy scenes.
+            channels and a 15 x 15 window; the estimate of
+            :mod:`cbnet_mmdet.utils.dark_channel`, which the peer
+            baseline's dehazer uses too, in torch on the CPU). Defaults to
+            (0.82, 0.83, 0.85), the light of the generated foggy scenes.
         channel_order (str): ``'bgr'`` (``LoadImageFromFile``'s default) or
             ``'rgb'``: where R, G, B of ``atmospheric_light`` go.
         camera_height (float): ``h``, metres, > 0. Defaults to 1.3.
@@ -229,8 +225,9 @@ class CBNetAddFog(BaseTransform):
         return np.minimum(depth, self.max_distance)
 
     def transmission(self, height: int, width: int, beta: float) -> np.ndarray:
-        """``t = exp(-beta d(v))`` per row, ``float64[H]`` in (0, 1]."""
-        return np.exp(-beta * self.distance(height, width))
+        """``t = exp(-beta d(v))`` per row, ``float64[H]`` in (0, 1]
+        (:func:`cbnet_mmdet.utils.scattering.transmission`)."""
+        return scattering.transmission(self.distance(height, width), beta)
 
     def light(self, img: np.ndarray) -> np.ndarray:
         """``A`` for ``img`` in its channel order, ``float64[3]``, [0, 1]."""
@@ -241,17 +238,21 @@ class CBNetAddFog(BaseTransform):
 
     @staticmethod
     def _dark_channel_light(img: np.ndarray) -> np.ndarray:
-        kernel = np.ones((DARK_CHANNEL_PATCH, ) * 2, np.uint8)
-        # minimum over channels (np.minimum: ~20x faster than .min(axis=2)
-        # on H x W x 3), then over windows: erosion with borders replicated,
-        # i.e. windows clipped to the image
-        dark = np.minimum(np.minimum(img[..., 0], img[..., 1]), img[..., 2])
-        dark = cv2.erode(dark, kernel, borderType=cv2.BORDER_REPLICATE).ravel()
-        k = max(1, int(dark.size * DARK_CHANNEL_TOP))
-        top = np.argpartition(dark, dark.size - k)[dark.size - k:]
-        pixels = img.reshape(-1, 3)[top].astype(np.float64)
-        best = pixels[pixels.sum(axis=1).argmax()]
-        return np.clip(best / 255.0, 0.0, 1.0)
+        """He et al.'s ``A`` of ``img``, in [0, 1]
+        (:mod:`cbnet_mmdet.utils.dark_channel` with its window and
+        fraction). Where pixels tie at the 0.1% cut of the dark channel,
+        which of them are searched is ``torch.topk``'s choice, as in the
+        peer baseline's dehazer."""
+        # a [1, 3, H, W] copy in the image's channel order (minimum and
+        # R + G + B do not depend on it); float32 holds uint8 values and
+        # their sums exactly, float images are searched in float64
+        dtype = np.float32 if img.dtype == np.uint8 else np.float64
+        x = torch.from_numpy(
+            np.array(img.transpose(2, 0, 1), dtype=dtype, order='C'))[None]
+        with torch.no_grad():
+            best = dark_channel.atmospheric_light(
+                x, dark_channel.dark_channel(x))[0]
+        return np.clip(best.numpy().astype(np.float64) / 255.0, 0.0, 1.0)
 
     @cache_randomness
     def _sample_beta(self) -> float:
@@ -296,11 +297,10 @@ class CBNetAddFog(BaseTransform):
         # float images keep their precision
         ftype = np.float64 if img.dtype == np.float64 else np.float32
         t = self.transmission(h, w, beta).astype(ftype)[:, None]  # [H, 1]
-        haze = (255.0 * light).astype(ftype)[None, :] * (1 - t)  # [H, 3]
         # rows of W * 3 values: contiguous operands (broadcasting over a
-        # last axis of 3 is several times slower)
-        out = img.reshape(h, w * 3) * t
-        out += np.tile(haze, (1, w))
+        # last axis of 3 is several times slower); A on the 0-255 scale
+        haze_light = np.tile((255.0 * light).astype(ftype), w)  # [W * 3]
+        out = scattering.scatter(img.reshape(h, w * 3), t, haze_light)
         if img.dtype == np.uint8:
             # a convex combination of two values in [0, 255]: no clipping
             np.rint(out, out=out)

@@ -3,8 +3,8 @@ the ``projects/edge_serving`` project.
 
 Nothing here is registered in MMDet's registries; the plugin never imports
 it (``tests/test_layering.py``). It imports the plugin (the predictor's
-models, dataset paths), the peer baseline's dark channel estimates
-(:mod:`cbnet_dehaze.models.dehazers.dark_channel`, the haze score) and
+models, dataset paths, the dark channel prior's estimates of
+:mod:`cbnet_mmdet.utils.dark_channel` for the haze score) and
 :mod:`cbnet_tools.markdown`.
 
 * :mod:`.codec`: HTTP body -> image (with the 4xx checks), shared by the

@@ -1,6 +1,6 @@
 """Per-frame haze estimate: the dark channel prior's transmission.
 
-Reuses :class:`cbnet_dehaze.models.dehazers.dark_channel.DarkChannelPrior`
+Reuses :class:`cbnet_mmdet.utils.dark_channel.DarkChannelPrior`
 (atmospheric light and refined transmission ``t``, the estimates the peer
 baseline's dehazer also removes haze with); the statistic is the mean of
 ``t`` over the frame: near 1 on clear frames, lower in fog.
@@ -8,7 +8,7 @@ baseline's dehazer also removes haze with); the statistic is the mean of
 import numpy as np
 import torch
 
-from cbnet_dehaze.models.dehazers.dark_channel import DarkChannelPrior
+from cbnet_mmdet.utils.dark_channel import DarkChannelPrior
 
 
 class HazeEstimator:

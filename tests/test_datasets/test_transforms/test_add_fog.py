@@ -255,6 +255,17 @@ def test_bad_images(img, error, match):
         build()(dict(img=img, img_path='street.jpg'))
 
 
+@pytest.mark.parametrize('shape', [(0, 8, 3), (8, 0, 3)])
+def test_empty_images(shape):
+    """A fixed light fogs nothing and keeps the shape; the dark channel
+    light has no pixel to search and says so."""
+    out = build(beta=0.02)(dict(img=np.zeros(shape, np.uint8)))
+    assert out['img'].shape == shape and out['img'].dtype == np.uint8
+    with pytest.raises(ValueError, match='empty'):
+        build(beta=0.02, atmospheric_light='dark_channel')(
+            dict(img=np.zeros(shape, np.uint8)))
+
+
 def test_repr_names_every_knob():
     text = repr(build(beta=(0.005, 0.02), prob=0.5, **CAMERA))
     for word in ('beta=(0.005, 0.02)', 'prob=0.5', 'camera_height=1.5',

@@ -3,8 +3,9 @@ import torch
 from mmdet.registry import MODELS
 from torch import Tensor
 
+from cbnet_mmdet.utils.dark_channel import DarkChannelPrior
+from cbnet_mmdet.utils.scattering import recover
 from .base_dehazer import BaseDehazer
-from .dark_channel import DarkChannelPrior
 
 
 @MODELS.register_module()
@@ -12,9 +13,10 @@ class CBNetDarkChannelPrior(BaseDehazer, DarkChannelPrior):
     """Training-free dehazing with the dark channel prior.
 
     For the scattering model ``I = J t + A (1 - t)``, the estimates of
-    :class:`~cbnet_dehaze.models.dehazers.dark_channel.DarkChannelPrior`
-    (dark channel, atmospheric light ``A``, guided-filter-refined
-    transmission ``t``), then ``J = (I - A) / max(t, t0) + A``. Batched
+    :class:`~cbnet_mmdet.utils.dark_channel.DarkChannelPrior` (dark
+    channel, atmospheric light ``A``, guided-filter-refined transmission
+    ``t``), then ``J = (I - A) / max(t, t0) + A``
+    (:func:`cbnet_mmdet.utils.scattering.recover`). Batched
     tensor code, CPU and CUDA, any B, H, W. There are no parameters.
 
     Args:
@@ -33,4 +35,4 @@ class CBNetDarkChannelPrior(BaseDehazer, DarkChannelPrior):
         """
         with torch.no_grad():
             light = self.atmospheric_light(img, self.dark_channel(img))
-        return (img - light) / self.transmission(img, light) + light
+        return recover(img, self.transmission(img, light), light)
