@@ -81,11 +81,17 @@ def github_anchor(heading):
     return text.replace(' ', '-')
 
 
+#: An explicit anchor, ``<a name="x"></a>`` or ``<a id="x"></a>`` (GitHub
+#: scrolls a link ``#x`` to it: a page keeps an old heading's anchor there).
+HTML_ANCHOR = re.compile(r'<a (?:name|id)="([^"]+)"\s*>\s*</a>')
+
+
 def anchors(path):
     """Every anchor of a markdown file's headings (code blocks skipped;
-    a repeated heading gets ``-1``, ``-2`` ... as on GitHub)."""
+    a repeated heading gets ``-1``, ``-2`` ... as on GitHub) and its
+    explicit ``<a name=...>`` anchors."""
     text = FENCE.sub('', _read(path))
-    seen, out = {}, set()
+    seen, out = {}, set(HTML_ANCHOR.findall(text))
     for line in text.splitlines():
         match = re.match(r'#{1,6} +(.*?) *#* *$', line)
         if not match:
@@ -287,7 +293,8 @@ def test_the_checks_see_what_they_should(tmp_path):
     docs.mkdir()
     (docs / 'a.md').write_text(
         '# Page A\n\n## Real fog on a trunk (`realfog`), 3 seeds\n\n'
-        '## Same\n\n## Same\n\n```bash\n# not a heading\n```\n')
+        '## Same\n\n## Same\n\n```bash\n# not a heading\n```\n'
+        '<a name="status-2026-11-27"></a>\n')
     page = docs / 'b.md'
     page.write_text(
         '[ok](a.md#real-fog-on-a-trunk-realfog-3-seeds) [ok2](a.md#same-1)'
@@ -296,7 +303,8 @@ def test_the_checks_see_what_they_should(tmp_path):
         'As issue 42 asks (#23), see /work/main and ../shared/data;'
         ' [x](a.md#page-a) and a colour &#38;.\n')
     assert anchors(str(docs / 'a.md')) == {
-        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1'
+        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1',
+        'status-2026-11-27'
     }
     bad = dict(broken_links(str(page), root=str(tmp_path)))
     assert set(bad) == {'nope.md', 'a.md#not-a-heading', '../../x.md'}
