@@ -25,8 +25,13 @@ from mmengine.registry import init_default_scope
 from doc_helpers import ROOT, read_text, readme_snippet
 from tool_helpers import load_tool, tool_file
 
+#: The config families' READMEs whose commands and citations are checked.
+FAMILY_READMES = [osp.join(ROOT, 'configs', family, 'README.md')
+                  for family in ('baselines', 'cbnet', 'coco_trunk', 'demo',
+                                 'pretrained', 'realfog', 'yolox_coco')]
 DOCS = [osp.join(ROOT, 'README.md')] + sorted(
     glob.glob(osp.join(ROOT, 'docs', '**', '*.md'), recursive=True) +
+    FAMILY_READMES +
     glob.glob(osp.join(ROOT, 'projects', '*', 'README.md')))
 #: Top-level folders of the repository a citation may start with.
 REPO_DIRS = ('cbnet_mmdet/', 'cbnet_lab/', 'cbnet_tools/', 'configs/',
@@ -276,15 +281,22 @@ def misparsed(parser, args, argv):
     return wrong
 
 
+#: The opening mark of a generated table (cbnet_lab/doc_tables.py).
+OPEN_MARK = '<!-- table:'
+
+
 def tabulated_records():
     """(doc, argv, table rows) of every documented ``compare_recipes.py
     --report-only`` command: the ``|`` and ``Left out`` lines after its
     bash block, up to the next block or heading, are what it prints from
-    the committed record."""
+    the committed record. A block right above a generated region is left
+    to the regions' check (:func:`shown_region_commands`)."""
     out = []
     for doc in DOCS:
         text = read_text(doc)
         for m in BASH_BLOCK.finditer(text):
+            if text[m.end():].lstrip().startswith(OPEN_MARK):
+                continue
             after = re.split(r'\n```|\n#', text[m.end():])[0]
             rows = [line.strip() for line in after.splitlines()
                     if line.startswith(('|', 'Left out'))]
@@ -298,8 +310,55 @@ def tabulated_records():
 TABULATED = tabulated_records()
 
 
+def shown_region_commands():
+    """(doc, line, the region's command, the commands of the bash block
+    right above it) of every generated region a bash block shows: the
+    block ends where the region's opening mark starts (blank lines aside).
+    A command is ``(script name, argv)``; ``--work-dir`` and ``--out-dir``
+    (the region's tool gives its own) are left out."""
+    from cbnet_lab.doc_tables import find_regions
+    out = []
+    for doc in DOCS:
+        text = read_text(doc)
+        blocks = list(BASH_BLOCK.finditer(text))
+        for region in find_regions(text, _rel(doc)):
+            mark = text.rfind(OPEN_MARK, 0, region.start)
+            above = [b for b in blocks
+                     if b.end() <= mark and not text[b.end():mark].strip()]
+            if not above:
+                continue
+            shown = []
+            for tool, argv in block_commands(above[-1].group(1)):
+                for option in ('--work-dir', '--out-dir'):
+                    if option in argv:
+                        i = argv.index(option)
+                        argv = argv[:i] + argv[i + 2:]
+                shown.append((osp.basename(tool), argv))
+            out.append((_rel(doc), region.line,
+                        (region.tool, region.argv), shown))
+    return out
+
+
+SHOWN = shown_region_commands()
+
+
 def test_docs_tabulate_a_record():
-    assert any(doc == 'docs/accuracy.md' for doc, _, _ in TABULATED)
+    # the old form (a table pasted under its command, checked here) or a
+    # generated region under the command that prints it
+    assert any(doc == 'docs/accuracy.md' for doc, _, _, _ in SHOWN)
+    assert {tool for _, _, (tool, _), _ in SHOWN} >= {
+        'compare_recipes.py', 'record_table.py'}
+
+
+@pytest.mark.parametrize('doc,line,command,shown', SHOWN,
+                         ids=[f'{d}:{n}' for d, n, _, _ in SHOWN])
+def test_a_command_shown_above_a_table_is_the_one_that_prints_it(
+        doc, line, command, shown):
+    """The bash block right above a generated table shows the command
+    that prints it (the region's own), so a reader can run what made it."""
+    assert command in shown, (
+        f'{doc}:{line}: the table is printed by {command}; the block above '
+        f'it shows {shown}')
 
 
 @pytest.mark.parametrize('doc,argv,rows', TABULATED,

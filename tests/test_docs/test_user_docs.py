@@ -28,7 +28,7 @@ import statistics
 import subprocess
 
 import pytest
-from doc_helpers import ROOT, read_text
+from doc_helpers import LINK, ROOT, anchors, broken_links, read_text
 from record_helpers import seed_values
 
 README_MAX_LINES = 230
@@ -51,9 +51,6 @@ UNTRACKED_DIRS = frozenset(
     {'.git', '.venv', 'work_dirs', 'data', '__pycache__'})
 #: This file, whose checks quote what they forbid.
 THIS_FILE = osp.abspath(__file__)
-#: ``[text](target)`` of a markdown link or image.
-LINK = re.compile(r'\]\(([^)\s]+)\)')
-FENCE = re.compile(r'^(```|~~~).*?^\1', flags=re.S | re.M)
 
 
 def user_pages(root=ROOT):
@@ -66,53 +63,6 @@ def user_pages(root=ROOT):
 
 def _rel(path, root=ROOT):
     return osp.relpath(path, root)
-
-
-def github_anchor(heading):
-    """GitHub's anchor of a heading's text: lower case, punctuation other
-    than ``-`` and ``_`` dropped, each space a ``-``."""
-    text = re.sub(r'\[([^\]]*)\]\([^)]*\)', r'\1', heading.strip())
-    text = re.sub(r'[^\w\- ]', '', text.lower())
-    return text.replace(' ', '-')
-
-
-def anchors(path):
-    """Every anchor of a markdown file's headings (code blocks skipped;
-    a repeated heading gets ``-1``, ``-2`` ... as on GitHub)."""
-    text = FENCE.sub('', read_text(path))
-    seen, out = {}, set()
-    for line in text.splitlines():
-        match = re.match(r'#{1,6} +(.*?) *#* *$', line)
-        if not match:
-            continue
-        anchor = github_anchor(match.group(1))
-        n = seen.get(anchor, 0)
-        seen[anchor] = n + 1
-        out.add(anchor if n == 0 else f'{anchor}-{n}')
-    return out
-
-
-def broken_links(path, root=ROOT):
-    """(link, why) of every relative link of ``path`` whose file is
-    missing, lies outside the repository, or whose anchor names no
-    heading of the markdown file it points at."""
-    text = FENCE.sub('', read_text(path))
-    bad = []
-    for target in LINK.findall(text):
-        if '://' in target or target.startswith('mailto:'):
-            continue
-        file_part, _, anchor = target.partition('#')
-        full = osp.normpath(osp.join(osp.dirname(path), file_part)) \
-            if file_part else path
-        if not (full + '/').startswith(osp.normpath(root) + '/'):
-            bad.append((target, 'outside the repository'))
-        elif not osp.exists(full):
-            bad.append((target, 'no such file'))
-        elif anchor and full.endswith('.md') and \
-                anchor not in anchors(full):
-            bad.append((target, f'no heading with anchor #{anchor} in '
-                        f'{_rel(full, root)}'))
-    return bad
 
 
 def _issues_in_line(line, markdown=True):
@@ -283,7 +233,8 @@ def test_the_checks_see_what_they_should(tmp_path):
     docs.mkdir()
     (docs / 'a.md').write_text(
         '# Page A\n\n## Real fog on a trunk (`realfog`), 3 seeds\n\n'
-        '## Same\n\n## Same\n\n```bash\n# not a heading\n```\n')
+        '## Same\n\n## Same\n\n```bash\n# not a heading\n```\n'
+        '<a name="status-2026-11-27"></a>\n')
     page = docs / 'b.md'
     page.write_text(
         '[ok](a.md#real-fog-on-a-trunk-realfog-3-seeds) [ok2](a.md#same-1)'
@@ -292,7 +243,8 @@ def test_the_checks_see_what_they_should(tmp_path):
         'As issue 42 asks (#23), see /work/main and ../shared/data;'
         ' [x](a.md#page-a) and a colour &#38;.\n')
     assert anchors(str(docs / 'a.md')) == {
-        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1'
+        'page-a', 'real-fog-on-a-trunk-realfog-3-seeds', 'same', 'same-1',
+        'status-2026-11-27'
     }
     bad = dict(broken_links(str(page), root=str(tmp_path)))
     assert set(bad) == {'nope.md', 'a.md#not-a-heading', '../../x.md'}

@@ -160,3 +160,53 @@ def test_an_offload_table_through_the_real_command():
            if line.startswith('| always server |')]
     assert row and (f'| {statistics.mean(aps):.1f} +- '
                     f'{statistics.stdev(aps):.1f} |') in row[0], row
+
+
+def test_a_record_table_through_the_real_command():
+    """A speed record the harness does not tabulate: the region gets
+    record_table.py's table, its ratio the medians' ratio of the record
+    (computed here)."""
+    import statistics
+    record = osp.join('docs', 'benchmarks', 'device_like_for_like.json')
+    region = dt.find_regions(
+        f'<!-- table: record_table.py like-for-like {record} --table '
+        'ratios -->\n<!-- /table -->\n', 'page.md')[0]
+    assert region.tool == 'record_table.py'
+    table = dt.render(region.argv, dt_root(), tool=region.tool)
+    with open(osp.join(dt_root(), record)) as f:
+        cell = json.load(f)['inference_round_times_s']['s512_t1']
+    ratio = statistics.median(cell['b2']) / statistics.median(
+        cell['swin-s_k300'])
+    assert f'| 512x1024, 1 thread | {ratio:.2f} / ' in table, table
+
+
+def test_one_process_renders_every_region_and_names_a_failing_one(tmp_path):
+    """update_docs renders each distinct command once, all in one process;
+    a command that fails is an error naming its page and line."""
+    good = ('<!-- table: record_table.py kernels '
+            'docs/benchmarks/kernels_cuda_h100.json -->\n<!-- /table -->\n')
+    (tmp_path / 'a.md').write_text(good + '\n' + good)
+    (tmp_path / 'b.md').write_text(good)
+    calls = []
+
+    def counting(argv, root, tool='compare_recipes.py'):
+        calls.append((tool, tuple(argv)))
+        return '| t |\n'
+
+    stale = dt.update_docs(str(tmp_path), ['a.md', 'b.md'], check=True,
+                           renderer=counting, log=lambda *a: None)
+    assert len(calls) == 1 and len(stale) == 3
+    tables = dt.render_many(
+        [('record_table.py', ['kernels',
+                              'docs/benchmarks/kernels_cuda_h100.json']),
+         ('record_table.py', ['scaling', 'docs/benchmarks/no_such.json'])],
+        dt_root())
+    assert tables[0].startswith('| kernel |')
+    assert isinstance(tables[1], RuntimeError) and 'no_such.json' in \
+        str(tables[1])
+    (tmp_path / 'c.md').write_text(
+        'x\n<!-- table: record_table.py scaling no_such.json -->\n'
+        '<!-- /table -->\n')
+    with pytest.raises(RuntimeError, match=r'c\.md:2: record_table\.py'):
+        dt.update_docs(str(tmp_path), ['c.md'], check=True,
+                       log=lambda *a: None)

@@ -1,8 +1,12 @@
 """Regenerate the results tables of the docs from their JSON records.
 
-Every ``<!-- table: compare_recipes.py ... --report-only ... -->`` region
-of README.md, docs/, configs/*/README.md and projects/*/README.md gets
-what its command prints (cbnet_lab/doc_tables.py)::
+Every ``<!-- table: COMMAND -->`` region of README.md, docs/,
+configs/*/README.md and projects/*/README.md gets what its command prints
+from committed records (cbnet_lab/doc_tables.py): ``compare_recipes.py
+... --report-only ...`` (the recipe comparisons), ``offload_seeds.py``
+(the edge model's offload tables) or ``record_table.py KIND RECORD``
+(speed, kernel, backbone, proposal and model-index records); every
+command runs once, all in one process::
 
     python tools/misc/update_doc_tables.py            # rewrite the tables
     python tools/misc/update_doc_tables.py --check    # exit 1 if stale
