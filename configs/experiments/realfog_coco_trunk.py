@@ -6,8 +6,9 @@
 # Cascade R-CNN against CBNet-PT (a fresh FPN each), the revised CBNet
 # (NAS-FPN) for the record, and the stock cascade on the pretrained PAFPN
 # (YOLOX's own neck, a pooled fourth level) against the fresh FPN. Then the
-# fine-tuning settings, each against the stock cascade's row: the trunk at
-# a tenth of the lr, the stem frozen, a 4x longer warm-up
+# fine-tuning settings, each against the stock cascade's row (stem and
+# first stage frozen, trunk at the full lr): the trunk at a tenth of the
+# lr, the stem trained too, a 4x longer warm-up
 # (docs/robustness.md, "CBNet from a COCO trunk").
 preset = 'realfog_pretrained'
 columns = ['box AP', 'box AP50', 'box AP_s', 'box AP_m', 'box AP_l']
@@ -33,9 +34,9 @@ recipes = [
         config='coco_trunk/finetune/cascade-rcnn_yolox-nano-coco_fpn_'
         '1xb2-ft-trunk-lr0.1_dawn-fog.py'),
     dict(
-        name='Cascade R-CNN, COCO trunk, frozen stem',
+        name='Cascade R-CNN, COCO trunk, stem trained',
         config='coco_trunk/finetune/cascade-rcnn_yolox-nano-coco_fpn_'
-        '1xb2-ft-frozen-stem_dawn-fog.py'),
+        '1xb2-ft-stem-trained_dawn-fog.py'),
     # the set's 50 warm-up iterations made 200 (of 900)
     dict(
         name='Cascade R-CNN, COCO trunk, warm-up 200',

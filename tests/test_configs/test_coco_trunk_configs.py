@@ -77,10 +77,11 @@ def test_variants_change_only_what_their_names_say():
         == 1.0
     lr.optim_wrapper.paramwise_cfg.custom_keys.backbone.lr_mult = 1.0
     assert lr.optim_wrapper == base.optim_wrapper and lr.model == base.model
-    stem = read_config(FOG['Cascade R-CNN, COCO trunk, frozen stem'])
+    stem = read_config(FOG['Cascade R-CNN, COCO trunk, stem trained'])
+    # the stem and first stage frozen by default, trained in the variant
     assert (base.model.backbone.frozen_stages,
-            stem.model.backbone.frozen_stages) == (-1, 1)
-    stem.model.backbone.frozen_stages = -1
+            stem.model.backbone.frozen_stages) == (1, -1)
+    stem.model.backbone.frozen_stages = 1
     assert stem.model == base.model
     # the warm-up row is the stock config with its own budget
     row = rc.SETS['realfog_coco_trunk'].recipe(

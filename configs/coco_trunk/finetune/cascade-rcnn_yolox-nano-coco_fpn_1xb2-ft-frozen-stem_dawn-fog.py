@@ -1,6 +1,0 @@
-# realfog_coco_trunk's fine-tuning settings: the stock Cascade R-CNN on
-# YOLOX-Nano's COCO trunk with its stem and first stage frozen (as
-# configs/pretrained/'s ImageNet trunks freeze theirs) instead of nothing
-# frozen; nothing else changed.
-_base_ = '../cascade-rcnn_yolox-nano-coco_fpn_1xb2-ft_dawn-fog.py'
-model = dict(backbone=dict(frozen_stages=1))
