@@ -64,9 +64,10 @@ from mmengine.device import get_device
 from cbnet_tools.markdown import markdown_table
 from cbnet_tools.pretrained import require_pretrained
 
-from .ap_drop import ap_drop, test_condition, transfer_test
-from .config_edits import (Budget, budget_cfg, checkpoint_iter, configs_root,
-                           read_config, resume_file)
+from .ap_drop import ap_drop
+from .config_edits import (Budget, ap_drop_cfgs, budget_cfg, checkpoint_iter,
+                           configs_root, read_config, resume_file,
+                           test_condition, transfer_test)
 from .report import machine_line, plot, to_markdown
 from .metric_keys import columns as metric_columns
 from .sets import Preset, Recipe, load_presets, load_sets
@@ -578,9 +579,9 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
     run_dir = osp.dirname(path)
     if osp.isfile(path):
         return read_result(path, budget, cfg_options)
-    cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
-    cfg.experiment_name = f'{slug(name)}_seed{seed}_{stamp}'
+    cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options,
+                     experiment_name=f'{slug(name)}_seed{seed}_{stamp}')
     extra = {}
     if test_only:
         checkpoint = cfg.get('load_from')
@@ -655,9 +656,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             train_time = train_time * budget.iters / done if done else None
             extra = dict(resumed_at_iter=resumed,
                          train_time_extrapolated=True)
-    test_cfg = copy.deepcopy(cfg)
-    table = ap_drop(test_cfg, checkpoint, osp.join(run_dir, 'test'), betas,
-                    transfer_root=transfer_root)
+    table = ap_drop(ap_drop_cfgs(cfg, checkpoint, osp.join(run_dir, 'test'),
+                                 betas, transfer_root=transfer_root))
     result = dict(
         recipe=name, config=config, seed=seed, budget=asdict(budget),
         train_time_s=train_time, metrics=table['metrics'], **extra)

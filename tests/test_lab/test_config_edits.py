@@ -6,6 +6,7 @@ import os.path as osp
 import pytest
 
 from cbnet_lab import config_edits as ce
+from cbnet_lab.config_edits import reading
 from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -179,8 +180,8 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
             calls.append(path)
             return Config.fromfile(path)
 
-    monkeypatch.setattr(ce, 'Config', Spy)
-    monkeypatch.setattr(ce, '_READ_CONFIGS', {})
+    monkeypatch.setattr(reading, 'Config', Spy)
+    monkeypatch.setattr(reading, '_READ_CONFIGS', {})
     path = tmp_path / 'recipe.py'
     path.write_text("_base_ = 'mmdet::_base_/default_runtime.py'\n"
                     "data_root = 'data/a/'\nnums = [1, 2]\n")

@@ -68,21 +68,21 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,  # noqa: F811
         'dehazers.py')).fog_dehazer_checkpoint)
     save_untrained_dehazer(dehazer_file)
     trained, tested = [], []
-    train, evaluate = Runner.train, ad.evaluate_checkpoint
+    train, evaluate = Runner.train, ad.evaluate
 
     def spy_train(runner):
         trained.append(osp.relpath(runner.work_dir, tmp_path / 'runs'))
         return train(runner)
 
-    def spy_evaluate(cfg, checkpoint, work_dir, name, prefix='test'):
-        tested.append((osp.relpath(work_dir, tmp_path / 'runs'),
-                       osp.relpath(checkpoint, tmp_path / 'runs'),
+    def spy_evaluate(cfg):
+        tested.append((osp.relpath(cfg.work_dir, tmp_path / 'runs'),
+                       osp.relpath(cfg.load_from, tmp_path / 'runs'),
                        cfg.test_condition,
                        cfg.model.data_preprocessor.type))
-        return evaluate(cfg, checkpoint, work_dir, name, prefix)
+        return evaluate(cfg)
 
     monkeypatch.setattr(Runner, 'train', spy_train)
-    monkeypatch.setattr(ad, 'evaluate_checkpoint', spy_evaluate)
+    monkeypatch.setattr(ad, 'evaluate', spy_evaluate)
     tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'fog_transfer', '--data-root', street,
             '--transfer-root', fog, '--work-dir', str(tmp_path / 'runs'),
@@ -268,11 +268,11 @@ def test_transfer_test_is_checked(tmp_path):
     cfg = Config(dict(test_condition='coco street', transfer_test=dict(
         condition='real fog', data_root=str(tmp_path / 'missing'))))
     cfg.filename = 'x.py'
-    assert ad.transfer_test(cfg)['condition'] == 'real fog'
+    assert ce.transfer_test(cfg)['condition'] == 'real fog'
     with pytest.raises(FileNotFoundError, match='--transfer-root'):
-        ad.transfer_cfg(cfg)
+        ce.transfer_cfg(cfg)
     # a config made to test real fog itself tests no second set after it
-    assert 'transfer_test' not in ad.real_fog_cfg(Config(dict(
+    assert 'transfer_test' not in ce.real_fog_cfg(Config(dict(
         transfer_test=dict(condition='fog', data_root=str(tmp_path)),
         test_dataloader=dict(dataset=dict(pipeline=[])))), str(tmp_path))
     for bad, match in (
@@ -284,7 +284,7 @@ def test_transfer_test_is_checked(tmp_path):
              'also the name')):
         cfg.transfer_test = bad
         with pytest.raises(ValueError, match=match):
-            ad.transfer_test(cfg)
+            ce.transfer_test(cfg)
 
 
 def test_transfer_root_and_ceiling_errors(tmp_path):
@@ -371,13 +371,17 @@ def test_a_run_trained_elsewhere_is_tested_not_trained(
                           resumed_at_iter=1, train_time_extrapolated=True)
     tested = []
 
-    def fake_ap_drop(cfg, checkpoint, work_dir, betas, transfer_root):
-        tested.append(checkpoint)
+    def fake_ap_drop_cfgs(cfg, checkpoint, work_dir, betas, transfer_root):
+        return {'coco street': checkpoint}
+
+    def fake_ap_drop(cfgs):
+        tested.extend(cfgs.values())
         return dict(metrics={'coco street': {'coco/bbox_mAP': 0.5}})
 
     def no_training(*args, **kwargs):
         raise AssertionError('nothing may be trained')
 
+    monkeypatch.setattr(rc, 'ap_drop_cfgs', fake_ap_drop_cfgs)
     monkeypatch.setattr(rc, 'ap_drop', fake_ap_drop)
     monkeypatch.setattr(Runner, 'from_cfg', no_training)
     name, config = rc.resolve_recipes('fog_transfer')[0]

@@ -13,8 +13,8 @@ import torch
 from tool_helpers import load_tool
 
 import cbnet_lab.benchmark as benchmark_utils
-from cbnet_lab.benchmark import (PeakMemory, count_flops,
-                                 strip_pretrained, summarize)
+from cbnet_lab.benchmark import PeakMemory, count_flops, summarize
+from cbnet_lab.config_edits import load_benchmark_cfg, strip_pretrained
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 SCRIPT = osp.join(ROOT, 'tools', 'analysis_tools', 'benchmark.py')
@@ -234,7 +234,7 @@ def test_benchmark_backbone_smoke(tmp_path):
 def test_build_detector_is_seeded():
     """Every run measures the same random model (proposals, and so the RoI
     heads' cost, depend on the weights)."""
-    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.benchmark import build_detector
     cfg = load_benchmark_cfg(
         osp.join(ROOT, 'configs', 'baselines',
                  'yolox_s_8xb8-300e_cityscapes.py'))
@@ -273,8 +273,7 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
     """Inside the context the RPN still runs but the RoI head sees the
     fixed boxes; afterwards the class's method is back."""
     from cbnet_lab.benchmark import (FixedProposals, build_detector,
-                                     load_benchmark_cfg, make_batch,
-                                     preprocess)
+                                     make_batch, preprocess)
     cfg = load_benchmark_cfg(osp.join(
         ROOT, 'configs', 'demo',
         'mask-rcnn_mit-b0_fpn_1xb4-demo_cityscapes-like.py'))
@@ -383,7 +382,7 @@ def test_test_time_proposal_count_is_recorded(tmp_path):
         '--threads', '1', '--out-dir', str(tmp_path)
     ])
     results, _ = bench_script.run(args, lambda res, sca: None)
-    cfg = benchmark_utils.load_benchmark_cfg(
+    cfg = load_benchmark_cfg(
         osp.join(ROOT, args.configs['cbnet_mit-b0']))
     keep = cfg.model.test_cfg.rpn.max_per_img
     assert keep < 1000
@@ -529,7 +528,7 @@ def test_a_missing_or_unreadable_image_is_an_error_before_any_build(
 
 
 def test_checkpoint_loads_strictly(tmp_path):
-    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.benchmark import build_detector
     from cbnet_lab.model_benchmark import Bench
     bench_script = load_tool('analysis_tools/benchmark.py')
     trained = build_detector(load_benchmark_cfg(
