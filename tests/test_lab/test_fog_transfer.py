@@ -23,6 +23,8 @@ from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 from cbnet_lab import ap_drop as ad
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab import run as lab_run
+from cbnet_lab import summary
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
@@ -233,7 +235,7 @@ def fake_runs(monkeypatch):
     monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
     return calls
 
 
@@ -381,8 +383,8 @@ def test_a_run_trained_elsewhere_is_tested_not_trained(
     def no_training(*args, **kwargs):
         raise AssertionError('nothing may be trained')
 
-    monkeypatch.setattr(rc, 'ap_drop_cfgs', fake_ap_drop_cfgs)
-    monkeypatch.setattr(rc, 'ap_drop', fake_ap_drop)
+    monkeypatch.setattr(lab_run, 'ap_drop_cfgs', fake_ap_drop_cfgs)
+    monkeypatch.setattr(lab_run, 'ap_drop', fake_ap_drop)
     monkeypatch.setattr(Runner, 'from_cfg', no_training)
     name, config = rc.resolve_recipes('fog_transfer')[0]
     result = rc.run_recipe(name, config, 0, budget, str(tmp_path), [], out,

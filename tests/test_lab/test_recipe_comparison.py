@@ -10,7 +10,7 @@ from tool_helpers import load_tool
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
-from cbnet_lab import report
+from cbnet_lab import report, summary
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -260,7 +260,7 @@ def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
                                                     for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
     logs = []
     got = rc.compare([('x', 'x.py'), ('y', 'y.py')], [0, 1], budget,
                      str(tmp_path / 'no_data_here'), [0.02], out,
@@ -314,7 +314,7 @@ def fake_training(tmp_path, monkeypatch, run_recipe):
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
     ann = tmp_path / 'data' / 'annotations'
     ann.mkdir(parents=True)
     (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
