@@ -223,3 +223,14 @@ def _save_untrained(runner, path: str) -> None:
     save_checkpoint(
         dict(state_dict=weights_to_cpu(runner.model.state_dict()),
              meta=dict(untrained=True)), path)
+
+
+def execute(job) -> dict:
+    """:func:`run_recipe` of a :class:`cbnet_lab.plan.Job`: the task every
+    executor runs (:mod:`cbnet_lab.executors`), here or in a worker
+    process."""
+    return run_recipe(job.name, job.config, job.seed, job.budget,
+                      job.data_root, job.betas, job.out_dir,
+                      job.cfg_options, weights_of=job.weights_of,
+                      transfer_root=job.transfer_root,
+                      trained_in=job.trained_in, test_only=job.test_only)

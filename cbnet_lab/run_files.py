@@ -10,10 +10,9 @@ restores of every earlier comparison read it.
 import json
 import os
 import os.path as osp
-import platform
 import re
 from dataclasses import asdict
-from typing import Optional, Tuple
+from typing import Optional
 
 from .config_edits import Budget, checkpoint_iter, resume_file
 
@@ -157,8 +156,7 @@ def check_weights_from(weights_from: str,
 
 
 def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
-                 cfg_options: Optional[dict] = None
-                 ) -> Tuple[Optional[str], bool]:
+                 cfg_options: Optional[dict] = None) -> Optional[str]:
     """A run of recipe ``name`` and ``seed`` in another set's work dir
     (checked by :func:`check_weights_from`); reads only.
 
@@ -171,9 +169,9 @@ def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
             run's must match.
 
     Returns:
-        tuple: (the run's ``result.json`` when it is finished with its
-        weights on disk, else None; whether another live process is
-        training it now).
+        str: The run's ``result.json`` when it is finished with its
+        weights on disk, else None (never run there, not finished yet, or
+        restored from a record without its weights).
 
     Raises:
         ValueError: The run there was trained under another budget or
@@ -181,84 +179,7 @@ def find_trained(weights_from: str, name: str, seed: int, budget: Budget,
     """
     path = result_file(weights_from, name, seed)
     if not osp.isfile(path):
-        return None, held_elsewhere(weights_from, name, seed)
+        return None
     read_result(path, budget, cfg_options)  # the same budget and overrides
     weights = checkpoint_file(weights_from, name, seed, budget)
-    return (path if osp.isfile(weights) else None), False
-
-
-class RunLock:
-    """A lock file in a run's folder, held by the process training it.
-
-    ``acquire`` creates ``.lock`` (holding ``host:pid``) atomically. A lock
-    left by a process that no longer runs on this host (killed) is stale
-    and taken over, so a killed comparison resumes.
-
-    Args:
-        run_dir (str): The run's folder (``acquire`` creates it if missing;
-            reading the lock writes nothing).
-    """
-
-    def __init__(self, run_dir: str):
-        self.path = osp.join(run_dir, '.lock')
-        self.held = False
-
-    @staticmethod
-    def _me() -> str:
-        return f'{platform.node()}:{os.getpid()}'
-
-    def holder(self) -> Optional[str]:
-        """``host:pid`` of the lock's holder, None when unlocked."""
-        try:
-            with open(self.path) as f:
-                return f.read().strip() or None
-        except FileNotFoundError:
-            return None
-
-    def held_by_another(self) -> bool:
-        """Whether a live process other than this one holds the lock."""
-        holder = self.holder()
-        return holder is not None and holder != self._me() and \
-            not self._stale(holder)
-
-    def _stale(self, holder: Optional[str]) -> bool:
-        host, _, pid = (holder or '').rpartition(':')
-        if host != platform.node() or not pid.isdigit():
-            # another machine's lock (shared folder), or being written
-            return False
-        try:
-            os.kill(int(pid), 0)
-        except ProcessLookupError:
-            return True
-        except PermissionError:
-            return False
-        return False
-
-    def acquire(self) -> bool:
-        """Take the lock; False if a live process holds it."""
-        os.makedirs(osp.dirname(self.path), exist_ok=True)
-        for _ in range(2):
-            try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-            except FileExistsError:
-                if not self._stale(self.holder()):
-                    return False
-                os.remove(self.path)
-                continue
-            with os.fdopen(fd, 'w') as f:
-                f.write(self._me())
-            self.held = True
-            return True
-        return False
-
-    def release(self) -> None:
-        """Drop the lock if this object holds it."""
-        if self.held and self.holder() == self._me():
-            os.remove(self.path)
-        self.held = False
-
-
-def held_elsewhere(out_dir: str, name: str, seed: int) -> bool:
-    """Whether another live process holds the lock of a run."""
-    return RunLock(osp.dirname(result_file(out_dir, name,
-                                           seed))).held_by_another()
+    return path if osp.isfile(weights) else None

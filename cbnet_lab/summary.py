@@ -217,11 +217,6 @@ def write(record: dict, out_dir: str, ceiling_md: str = '',
     if record.get('missing'):
         markdown += '\n\nLeft out (not finished): ' + ', '.join(
             f'{name} seed {seed}' for name, seed in record['missing']) + '.'
-    if record.get('in_progress'):
-        markdown += ('\n\nLeft out (being trained by another process): '
-                     + ', '.join(f'{name} seed {seed}'
-                                 for name, seed in record['in_progress'])
-                     + '.')
     with open(osp.join(out_dir, 'compare.md'), 'w') as f:
         f.write(markdown + '\n')
     plot(summary, record['betas'], osp.join(out_dir, 'compare.png'))
