@@ -1,11 +1,19 @@
 """The experiment lab of cbnet_mmdet: what measures the models, apart from
 the plugin (``cbnet_mmdet``: registered components only).
 
-- :mod:`cbnet_lab.recipe_comparison`: the comparison harness (recipe sets,
-  training and testing runs, statistics over seeds);
-  ``tools/analysis_tools/compare_recipes.py`` is its command line.
-- :mod:`cbnet_lab.config_edits`: one run's config from a recipe, a budget
-  and a seed, the edits it is made of, where a killed run resumes.
+- :mod:`cbnet_lab.recipe_comparison`: the comparison harness
+  (``tools/analysis_tools/compare_recipes.py`` is its command line), split
+  by what it does: :mod:`cbnet_lab.sets` (the experiment files, a
+  comparison's recipes), :mod:`cbnet_lab.plan` (its runs, checked before
+  the first), :mod:`cbnet_lab.run` and :mod:`cbnet_lab.run_files` (one
+  run: train, test, its result file, resume), :mod:`cbnet_lab.executors`
+  (in this process, in N worker processes, as Ray tasks),
+  :mod:`cbnet_lab.summary` (mean +- std over seeds, the record).
+- :mod:`cbnet_lab.config_edits`: every config edit of the lab, composed
+  once per run: a run's training config from a recipe, a budget and a
+  seed (and where a killed run resumes), a checkpoint's test configs
+  (clear / foggy / real fog / corrupted), the benchmarks' weightless
+  build; the measurements below are handed finished configs.
 - :mod:`cbnet_lab.report`: the tables and plots of a comparison and the
   machine line of every measurement.
 - :mod:`cbnet_lab.ap_drop`: AP on clear vs foggy (and real-fog) test sets;

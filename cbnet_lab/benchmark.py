@@ -4,86 +4,24 @@ their cost (time, peak memory, parameters, FLOPs) on synthetic inputs.
 Used by :mod:`cbnet_lab.model_benchmark`, :mod:`cbnet_lab.profiling`,
 :mod:`cbnet_lab.component_benchmark` and the config tests. Nothing
 is downloaded: every ``Pretrained`` initialisation and ``load_from`` is
-dropped, so the models have random weights (speed and memory do not depend
-on the weight values; detections after NMS do, slightly, see
-:func:`make_batch`). The timing and memory measurements themselves
-(``time_calls``, ``time_alternately``, ``summarize``, ``PeakMemory``...)
-are :mod:`cbnet_tools.measure`'s, imported here for the lab's modules.
+dropped (:func:`cbnet_lab.config_edits.load_benchmark_cfg`), so the
+models have random weights (speed and memory do not depend on the weight
+values; detections after NMS do, slightly, see :func:`make_batch`). The
+timing and memory measurements themselves (``time_calls``,
+``time_alternately``, ``summarize``, ``PeakMemory``...) are
+:mod:`cbnet_tools.measure`'s, imported here for the lab's modules.
 """
 import copy
-import os
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 import torch
-from mmengine.config import Config, ConfigDict
+from mmengine.config import Config
 from torch import nn
 
 from cbnet_tools.measure import (  # noqa: F401  (the lab measures with them)
     PeakMemory, hwm_reset_works, set_malloc_thresholds, summarize,
     synchronize, time_alternately, time_calls)
-
-
-def strip_pretrained(cfg: Union[dict, list]) -> Union[dict, list]:
-    """Copy of a (model) config with pretrained initialisation removed.
-
-    Every ``init_cfg`` of type ``Pretrained`` (alone or in a list) becomes
-    ``None`` and every ``pretrained=...`` key is dropped, at any depth.
-
-    Args:
-        cfg (dict | list): A model config (or part of one).
-
-    Returns:
-        dict | list: The config without pretrained initialisation.
-    """
-
-    def is_pretrained(init):
-        inits = init if isinstance(init, (list, tuple)) else [init]
-        return any(
-            isinstance(i, dict) and i.get('type') == 'Pretrained'
-            for i in inits)
-
-    if isinstance(cfg, (list, tuple)):
-        return type(cfg)(strip_pretrained(v) for v in cfg)
-    if not isinstance(cfg, dict):
-        return cfg
-    out = type(cfg)() if isinstance(cfg, ConfigDict) else {}
-    for key, value in cfg.items():
-        if key == 'pretrained':
-            continue
-        if key == 'init_cfg' and is_pretrained(value):
-            out[key] = None
-            continue
-        out[key] = strip_pretrained(value)
-    return out
-
-
-def load_benchmark_cfg(path: str) -> Config:
-    """Load a detector config for a weightless build on fixed inputs.
-
-    Removes pretrained initialisation (:func:`strip_pretrained`),
-    ``load_from``, and the data preprocessor's ``batch_augments`` (YOLOX's
-    random multi-scale resize would change the measured input size).
-
-    Args:
-        path (str): Config file.
-
-    Returns:
-        Config: The loaded, modified config.
-
-    Raises:
-        FileNotFoundError: ``path`` does not exist.
-        KeyError: The config has no ``model``.
-    """
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f'config file not found: {path}')
-    cfg = Config.fromfile(path)
-    if 'model' not in cfg:
-        raise KeyError(f'config {path} has no `model`')
-    cfg.model = strip_pretrained(cfg.model)
-    cfg.model.get('data_preprocessor', {}).pop('batch_augments', None)
-    cfg.load_from = None
-    return cfg
 
 
 def build_detector(cfg: Config, seed: Optional[int] = 0) -> nn.Module:
@@ -98,7 +36,8 @@ def build_detector(cfg: Config, seed: Optional[int] = 0) -> nn.Module:
     RoIs), change with the weights.
 
     Args:
-        cfg (Config): A config from :func:`load_benchmark_cfg`.
+        cfg (Config): A config from
+            :func:`cbnet_lab.config_edits.load_benchmark_cfg`.
         seed (int, optional): Seed of the initial weights; ``None`` leaves
             the global RNG alone. Defaults to 0.
 

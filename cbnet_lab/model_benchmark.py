@@ -52,13 +52,13 @@ class Bench:
                                  'an image')
             self.frame = B.resize_image(photo, tuple(args.size))
         from mmengine.config import DictAction
+
+        from cbnet_lab.config_edits import load_benchmark_cfg
         for name, path in args.configs.items():
-            cfg = B.load_benchmark_cfg(path)
-            if args.overrides.get(name):
-                # the values parsed as on MMEngine's command lines
-                cfg.merge_from_dict({
-                    k: DictAction._parse_iterable(v)
-                    for k, v in args.overrides[name].items()})
+            # the overrides' values parsed as on MMEngine's command lines
+            cfg = load_benchmark_cfg(path, {
+                k: DictAction._parse_iterable(v)
+                for k, v in (args.overrides.get(name) or {}).items()})
             self.sizes[name] = (
                 B.pipeline_input_size(cfg, tuple(args.size))
                 if getattr(args, 'config_resize', False)
@@ -106,14 +106,11 @@ class Bench:
 
     def train_call(self, name, raw):
         from mmengine.optim import build_optim_wrapper
+
+        from cbnet_lab.config_edits import timing_optim_cfg
         model = self.models[name]
-        cfg = dict(self.optims[name] or dict(
-            type='OptimWrapper', optimizer=dict(type='SGD', lr=1e-5)))
-        if self.args.amp:
-            cfg['type'] = 'AmpOptimWrapper'
-        # a tiny lr: the weights barely move between the timed steps
-        cfg['optimizer'] = dict(cfg['optimizer'], lr=1e-8)
-        wrapper = build_optim_wrapper(model, cfg)
+        wrapper = build_optim_wrapper(
+            model, timing_optim_cfg(self.optims[name], self.args.amp))
 
         def call():
             model.train()

@@ -15,6 +15,7 @@ from typing import Callable, Dict, Optional, Sequence, Tuple
 from cbnet_tools.markdown import markdown_table
 
 from . import benchmark as B
+from .config_edits import load_benchmark_cfg
 from .report import machine_line
 
 #: the detector's top-level parts that get their own profiler range
@@ -93,9 +94,7 @@ def build(config: str,
         optimiser step, each in a profiler range.
     """
     import torch
-    cfg = B.load_benchmark_cfg(config)
-    if cfg_options:
-        cfg.merge_from_dict(cfg_options)
+    cfg = load_benchmark_cfg(config, cfg_options)
     model = B.build_detector(cfg).to(device)
     # the benchmark suite's inputs: 8 classes, as every shipped config
     raw = B.make_batch(batch_size, tuple(size), num_items,

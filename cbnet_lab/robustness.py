@@ -25,15 +25,13 @@ order (BGR by default) although ``imagecorruptions`` assumes RGB: the same
 images MMDet's published robustness numbers were computed on (fog is
 channel-symmetric; ``brightness``/``saturate``/``frost`` are not).
 """
-import copy
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
-from mmengine.config import Config
 
 from cbnet_tools.markdown import markdown_table
 
-from .ap_drop import condition_cfg, evaluate_checkpoint
+from .ap_drop import evaluate
 from .metric_keys import columns
 
 #: Corruption groups, named and ordered as in MMDet's test_robustness.py
@@ -53,10 +51,6 @@ CORRUPTION_GROUPS['all'] = (
     CORRUPTION_GROUPS['benchmark'] + CORRUPTION_GROUPS['holdout'])
 #: How many leading corruptions ``aggregate='benchmark'`` averages (MMDet).
 NUM_BENCHMARK = 15
-#: Loaders after which ``Corrupt`` is inserted: MMCV's (as a config may
-#: name it) and the project's checking one.
-LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
-                'mmdet.LoadImageFromFile', 'CBNetLoadImageFromFile')
 #: Metric keys summarised: (label, key of CocoMetric / our mIoU metric).
 SUMMARY_METRICS = tuple(
     (label, key) for label, key, _ in columns('box AP', 'mask AP', 'mIoU'))
@@ -124,56 +118,14 @@ def check_corruptions(names: Sequence[str]) -> None:
             '--corruptions; docs/robustness.md):\n  ' + '\n  '.join(failed))
 
 
-def corrupted_cfg(cfg: Config, corruption: str, severity: int) -> Config:
-    """Copy of ``cfg`` whose test images are corrupted.
-
-    Args:
-        cfg (Config): Test config; its ``test_dataloader.dataset.pipeline``
-            must load images with ``LoadImageFromFile`` (or ours).
-        corruption (str): ``imagecorruptions`` name, e.g. ``'fog'``.
-        severity (int): 1-5; 0 returns an unchanged copy.
-
-    Returns:
-        Config: The copy, ``Corrupt`` right after the loader.
-
-    Raises:
-        ValueError: severity outside 0-5, or no loader in the pipeline.
-    """
-    if severity not in range(6):
-        raise ValueError(f'severity must be 0-5, got {severity!r}')
-    cfg = copy.deepcopy(cfg)
-    if severity == 0:
-        return cfg
-    pipeline = cfg.test_dataloader.dataset.pipeline
-    types = [t.get('type') for t in pipeline]
-    at = next((i for i, t in enumerate(types) if t in LOADER_TYPES), None)
-    if at is None:
-        raise ValueError(
-            f'no image loader ({LOADER_TYPES[0]}) in '
-            f'test_dataloader.dataset.pipeline: {types}')
-    pipeline.insert(
-        at + 1,
-        dict(type='Corrupt', corruption=corruption, severity=severity))
-    return cfg
-
-
-def run_benchmark(cfg: Config,
-                  checkpoint: str,
-                  work_dir: str,
-                  corruptions: Sequence[str] = ('fog', ),
-                  severities: Sequence[int] = (0, 1, 2, 3, 4, 5),
-                  betas: Sequence[float] = (),
+def run_benchmark(cfgs: dict,
                   log: Callable[[str], None] = print) -> dict:
     """Test a checkpoint under corruptions and under Foggy Cityscapes fog.
 
     Args:
-        cfg (Config): Test config (clear or foggy Cityscapes dataset; the
-            corruptions are applied to the clear images).
-        checkpoint (str): Checkpoint file.
-        work_dir (str): Folder of the runs' logs.
-        corruptions (Sequence[str]): Corruption or group names.
-        severities (Sequence[int]): Severities 0-5 (0: clean, run once).
-        betas (Sequence[float]): Foggy Cityscapes betas (1/m) to test too.
+        cfgs (dict): The finished test configs
+            (:func:`cbnet_lab.config_edits.robustness_cfgs`: ``clean``,
+            ``corrupted``, ``foggy``).
         log (callable): Progress messages.
 
     Returns:
@@ -181,44 +133,38 @@ def run_benchmark(cfg: Config,
         metrics}}``; ``betas``: ``{beta: metrics}`` with ``0.0`` for the
         clear images (the same run as severity 0 when both are asked).
     """
-    names = resolve_corruptions(corruptions)
-    if any(s > 0 for s in severities):
-        check_corruptions(names)
-    clear = condition_cfg(cfg, None)
-    runs = [(c, s) for c in names for s in severities]
-    needs_clean = bool(betas) or any(s == 0 for _, s in runs)
-    total = int(needs_clean) + sum(s > 0 for _, s in runs) + len(betas)
+    corrupted, foggy = cfgs['corrupted'], cfgs['foggy']
+    if any(s > 0 for severities in corrupted.values() for s in severities):
+        check_corruptions(list(corrupted))
+    total = int(cfgs['clean'] is not None) + len(foggy) + sum(
+        c is not None for severities in corrupted.values()
+        for c in severities.values())
     done = 0
+    clean = None
 
-    def step(what: str, run_cfg: Config, name: str) -> dict:
+    def step(what: str, cfg) -> dict:
         nonlocal done
         done += 1
         log(f'[{done}/{total}] {what}')
-        return evaluate_checkpoint(run_cfg, checkpoint, work_dir, name,
-                                   prefix='robustness')
+        return evaluate(cfg)
 
-    clean = None
-    results: Dict[str, Dict[int, dict]] = {}
-    for corruption, severity in runs:
-        if severity == 0:
-            if clean is None:
-                clean = step('clean images', clear, 'clean')
-            metrics = clean
-        else:
-            metrics = step(
-                f'{corruption} severity {severity}',
-                corrupted_cfg(clear, corruption, severity),
-                f'{corruption}_{severity}')
-        results.setdefault(corruption, {})[severity] = metrics
-    sweep: Dict[float, dict] = {}
-    if betas:
+    def clean_run() -> dict:
+        nonlocal clean
         if clean is None:
-            clean = step('clean images', clear, 'clean')
-        sweep[0.0] = clean
-        for beta in betas:
-            sweep[float(beta)] = step(
-                f'Foggy Cityscapes beta={beta}', condition_cfg(cfg, beta),
-                f'foggy_beta_{beta}')
+            clean = step('clean images', cfgs['clean'])
+        return clean
+
+    results: Dict[str, Dict[int, dict]] = {}
+    for corruption, severities in corrupted.items():
+        for severity, cfg in severities.items():
+            results.setdefault(corruption, {})[severity] = clean_run() \
+                if cfg is None else step(
+                    f'{corruption} severity {severity}', cfg)
+    sweep: Dict[float, dict] = {}
+    if foggy:
+        sweep[0.0] = clean_run()
+        for beta, cfg in foggy.items():
+            sweep[beta] = step(f'Foggy Cityscapes beta={beta}', cfg)
     return dict(corruptions=results, betas=sweep)
 
 

@@ -25,14 +25,18 @@ record, never retrained) and the rows that train exactly as another set's::
 
 Row names are the keys of the runs (``{work_dir}/{slug(name)}/seed{s}``):
 rows are only ever appended or renamed together with their runs.
+
+The sets are read once, on import (:data:`SETS` and the tables drawn from
+it); :func:`resolve_recipes` gives a comparison its recipes, from a set
+and / or config files, and :func:`row_budget` a row its own budget.
 """
 import os.path as osp
-from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from dataclasses import dataclass, field, replace
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from mmengine.config import Config
 
-from .config_edits import configs_root
+from .config_edits import Budget, configs_root
 from .metric_keys import columns as metric_columns
 
 #: The folder of the set files, under the configs root.
@@ -230,3 +234,127 @@ def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
 def load_sets() -> Dict[str, ExperimentSet]:
     """Every set of :func:`set_files`, read."""
     return {name: load_set(name, path) for name, path in set_files().items()}
+
+
+#: The sets (``configs/experiments/*.py``), read once: set name -> the
+#: set.
+SETS = load_sets()
+
+#: Set name -> its rows as (recipe name, config path relative to the
+#: configs root; the peer baseline's configs are under
+#: ``../projects/peer_dehaze/configs``, which the wheel carries beside
+#: ``configs`` in ``cbnet_mmdet/.mim``).
+RECIPE_SETS: Dict[str, List[Tuple[str, str]]] = {
+    name: [(r.name, r.config) for r in s.recipes] for name, s in SETS.items()
+}
+
+#: Sets that report other columns than :data:`DETECTION_COLUMNS` (their
+#: files' ``columns``): real fog on a pretrained trunk adds COCO's AP per
+#: object size (DAWN's vehicles range from a few pixels to half the photo).
+SET_COLUMNS = {name: s.columns for name, s in SETS.items()
+               if s.columns is not None}
+
+#: The in-domain ceiling of a set (its file's ``ceiling``), tabulated
+#: from another set's record and never retrained: the record's set, the
+#: condition read from it, which of its recipes stands beside which of
+#: this set's (by the prefix of this set's row names), and what it is.
+SET_CEILINGS = {name: s.ceiling for name, s in SETS.items()
+                if s.ceiling is not None}
+
+#: Rows of a set that train exactly as rows of another set (its file's
+#: ``trained_as``; their configs add test settings only, :func:`trained_as`
+#: checks it): with ``weights_from`` (that set's work dir) their finished
+#: runs are tested instead of trained again.
+SET_TRAINED_AS = {name: s.trained_as for name, s in SETS.items()
+                  if s.trained_as is not None}
+
+#: The presets (``--preset``: ``configs/experiments/_base_/presets.py``).
+PRESETS: Dict[str, Preset] = load_presets()
+
+#: The preset a set runs with when ``--preset`` is not given (its file's
+#: ``preset``; ``demo`` where it names none).
+SET_PRESETS = {name: s.preset for name, s in SETS.items()
+               if s.preset != 'demo'}
+
+
+def resolve_recipes(set_name: Optional[str] = None,
+                    configs: Sequence[str] = (),
+                    only: Optional[Sequence[str]] = None
+                    ) -> List[Tuple[str, str]]:
+    """Recipes of a built-in set and/or ``NAME=PATH`` (or ``PATH``) items.
+
+    Args:
+        set_name (str, optional): A key of :data:`RECIPE_SETS`.
+        configs (Sequence[str]): Extra recipes, ``NAME=PATH`` or ``PATH``
+            (named after the file).
+        only (Sequence[str], optional): Keep only these recipe names (in
+            the set's order), e.g. one table of a set first.
+
+    Returns:
+        list[tuple[str, str]]: (name, absolute config path), in order.
+    """
+    recipes = []
+    if set_name is not None:
+        if set_name not in RECIPE_SETS:
+            raise ValueError(f'unknown recipe set {set_name!r}; built-in '
+                             f'sets: {sorted(RECIPE_SETS)}')
+        root = configs_root()
+        recipes += [(name, osp.join(root, path))
+                    for name, path in RECIPE_SETS[set_name]]
+    for item in configs:
+        name, _, path = item.rpartition('=')
+        name = name or osp.splitext(osp.basename(path))[0]
+        recipes.append((name, osp.abspath(path)))
+    if only is not None:
+        known = [n for n, _ in recipes]
+        unknown = [n for n in only if n not in known]
+        if unknown:
+            raise ValueError(f'--only: no recipe named {unknown}; the '
+                             f'recipes are {known}')
+        recipes = [(n, p) for n, p in recipes if n in set(only)]
+    if not recipes:
+        raise ValueError('no recipes: give a --set or --configs')
+    for name, path in recipes:
+        if not osp.isfile(path):
+            raise FileNotFoundError(f'recipe {name!r}: config {path} not '
+                                    'found')
+    names = [n for n, _ in recipes]
+    if len(set(names)) != len(names):
+        raise ValueError(f'recipe names must be unique, got {names}')
+    return recipes
+
+
+def set_rows(set_name: Optional[str],
+             recipes: Sequence[Tuple[str, str]]) -> Dict[str, Recipe]:
+    """The set file rows of ``recipes`` (those of set ``set_name`` with
+    the row's own config; a ``--configs`` recipe has none)."""
+    if set_name is None:
+        return {}
+    root = configs_root()
+    rows = {r.name: r for r in SETS[set_name].recipes}
+    return {name: rows[name] for name, config in recipes
+            if name in rows and osp.realpath(config) ==
+            osp.realpath(osp.join(root, rows[name].config))}
+
+
+def row_budget(budget: Budget, row: Optional[Recipe]) -> Budget:
+    """``budget`` with a row's own ``budget`` keys over it: ``iters_scale``
+    multiplies the set's iterations (so that ``--iters`` moves every row
+    alike: ``iters_scale=2`` trains twice as long as the others), any
+    other key is a :class:`Budget` field set as it is."""
+    if row is None or not row.budget:
+        return budget
+    over = dict(row.budget)
+    scale = over.pop('iters_scale', None)
+    if scale is not None:
+        if not isinstance(scale, (int, float)) or scale <= 0:
+            raise ValueError(f'recipe {row.name!r}: iters_scale must be a '
+                             f'number > 0, got {scale!r}')
+        over['iters'] = int(round(budget.iters * scale))
+    if over.get('img_scale') is not None:
+        over['img_scale'] = tuple(over['img_scale'])
+    try:
+        return replace(budget, **over)
+    except TypeError as err:
+        raise ValueError(f'recipe {row.name!r}: budget {row.budget}: '
+                         f'{err}') from None

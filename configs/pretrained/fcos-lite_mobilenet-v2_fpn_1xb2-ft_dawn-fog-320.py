@@ -8,8 +8,8 @@ _base_ = './fcos-lite_mobilenet-v2_fpn_1xb2-ft_dawn-fog.py'
 
 # (w, h), keep_ratio: fits inside. The comparison harness gives every other
 # recipe its preset's size (640x480); a config with `fixed_img_scale`
-# keeps this one (cbnet_lab/config_edits.py, budget_cfg), as its input
-# size is part of the model.
+# keeps this one (cbnet_lab/config_edits/training.py, budget_cfg), as its
+# input size is part of the model.
 fixed_img_scale = (320, 240)
 train_dataloader = dict(
     dataset=dict(pipeline=[

@@ -14,10 +14,9 @@ import pytest
 import torch
 
 from cbnet_lab.benchmark import (build_detector, has_mask_head,
-                                 head_num_classes,
-                                 load_benchmark_cfg, make_batch,
-                                 preprocess, train_step)
-from cbnet_lab.config_edits import read_config
+                                 head_num_classes, make_batch, preprocess,
+                                 train_step)
+from cbnet_lab.config_edits import load_benchmark_cfg, read_config
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 CONFIGS = sorted(glob.glob(osp.join(ROOT, 'configs', 'baselines', '*.py')))

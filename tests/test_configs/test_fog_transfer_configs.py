@@ -11,9 +11,8 @@ import torch
 from mmdet.registry import MODELS
 from mmengine.registry import init_default_scope
 
-from cbnet_lab import ap_drop as ad
 from cbnet_lab import recipe_comparison as rc
-from cbnet_lab.config_edits import read_config
+from cbnet_lab.config_edits import read_config, transfer_cfg
 from cbnet_tools import pretrained as pt
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -139,7 +138,7 @@ def test_builds_without_weights_and_tests_on_real_fog(name, path,
         assert len(model.extract_feat(torch.zeros(1, 3, 128, 192))) == 5
     # the second test set: DAWN's val split through the recipe's own test
     # pipeline, boxes only
-    fog = ad.transfer_cfg(cfg, str(tmp_path))
+    fog = transfer_cfg(cfg, str(tmp_path))
     dataset = fog.test_dataloader.dataset
     assert (fog.test_condition, dataset.type, dataset.data_root,
             dataset.split, dataset.val_fraction, dataset.split_seed) == \

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from mmengine.config import Config
 
-from cbnet_lab.ap_drop import (condition_cfg, drop_table,
-                               to_markdown)
+from cbnet_lab.ap_drop import drop_table, to_markdown
+from cbnet_lab.config_edits import condition_cfg
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 CFG = osp.join(ROOT, 'configs', '_base_', 'datasets',

@@ -1,5 +1,6 @@
-"""The benchmarks' helpers (cbnet_lab/benchmark.py): configs without
-pretrained weights, seeded weightless builds, FLOPs against hand-counted
+"""The benchmarks' helpers (cbnet_lab/benchmark.py): seeded weightless
+builds (configs without pretrained weights are config_edits', tested in
+tests/test_lab/test_config_edits.py), FLOPs against hand-counted
 references, the fixed proposal set and its context, the input size after a
 test pipeline, batches with a photo in (the timing and memory helpers it
 imports: tests/test_cbnet_tools/test_measure.py; the command line:
@@ -11,27 +12,13 @@ import torch
 from tool_helpers import load_tool
 
 import cbnet_lab.benchmark as benchmark_utils
-from cbnet_lab.benchmark import count_flops, strip_pretrained
+from cbnet_lab.benchmark import count_flops
+from cbnet_lab.config_edits import load_benchmark_cfg
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 #: models of benchmark.py's --suite edge: the edge model and a server one
 EDGE = 'edge_fcos-lite_320'
 SERVER = 'server_cascade-rcnn'
-
-
-def test_strip_pretrained_any_depth():
-    cfg = dict(
-        backbone=dict(
-            type='X', pretrained='a.pth',
-            init_cfg=dict(type='Pretrained', checkpoint='a.pth')),
-        neck=dict(init_cfg=[dict(type='Xavier'),
-                            dict(type='Pretrained', checkpoint='b')]),
-        head=dict(init_cfg=dict(type='Normal', std=0.01)))
-    out = strip_pretrained(cfg)
-    assert out['backbone'] == dict(type='X', init_cfg=None)
-    assert out['neck']['init_cfg'] is None
-    assert out['head'] == cfg['head']  # other inits untouched
-    assert cfg['backbone']['pretrained'] == 'a.pth'  # input not modified
 
 
 def test_count_flops_conv_reference():
@@ -80,7 +67,7 @@ def test_count_flops_counts_cpu_attention():
 def test_build_detector_is_seeded():
     """Every run measures the same random model (proposals, and so the RoI
     heads' cost, depend on the weights)."""
-    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.benchmark import build_detector
     cfg = load_benchmark_cfg(
         osp.join(ROOT, 'configs', 'baselines',
                  'yolox_s_8xb8-300e_cityscapes.py'))
@@ -119,7 +106,7 @@ def test_fixed_proposals_feed_the_roi_head_and_undo():
     """Inside the context the RPN still runs but the RoI head sees the
     fixed boxes; afterwards the class's method is back."""
     from cbnet_lab.benchmark import (FixedProposals, build_detector,
-                                     load_benchmark_cfg, make_batch,
+                                     make_batch,
                                      preprocess)
     cfg = load_benchmark_cfg(osp.join(
         ROOT, 'configs', 'demo',

@@ -6,6 +6,7 @@ import os.path as osp
 import pytest
 
 from cbnet_lab import config_edits as ce
+from cbnet_lab.config_edits import reading, strip_pretrained
 from cbnet_lab import recipe_comparison as rc
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -179,8 +180,8 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
             calls.append(path)
             return Config.fromfile(path)
 
-    monkeypatch.setattr(ce, 'Config', Spy)
-    monkeypatch.setattr(ce, '_READ_CONFIGS', {})
+    monkeypatch.setattr(reading, 'Config', Spy)
+    monkeypatch.setattr(reading, '_READ_CONFIGS', {})
     path = tmp_path / 'recipe.py'
     path.write_text("_base_ = 'mmdet::_base_/default_runtime.py'\n"
                     "data_root = 'data/a/'\nnums = [1, 2]\n")
@@ -223,3 +224,18 @@ def test_read_config_parses_once_and_hands_out_copies(tmp_path,
     assert len(calls) == 5
     with pytest.raises(FileNotFoundError, match='no_such.py'):
         ce.read_config(str(tmp_path / 'no_such.py'))
+
+
+def test_strip_pretrained_any_depth():
+    cfg = dict(
+        backbone=dict(
+            type='X', pretrained='a.pth',
+            init_cfg=dict(type='Pretrained', checkpoint='a.pth')),
+        neck=dict(init_cfg=[dict(type='Xavier'),
+                            dict(type='Pretrained', checkpoint='b')]),
+        head=dict(init_cfg=dict(type='Normal', std=0.01)))
+    out = strip_pretrained(cfg)
+    assert out['backbone'] == dict(type='X', init_cfg=None)
+    assert out['neck']['init_cfg'] is None
+    assert out['head'] == cfg['head']  # other inits untouched
+    assert cfg['backbone']['pretrained'] == 'a.pth'  # input not modified

@@ -7,7 +7,6 @@ checkpoint; the ceiling comes from a record."""
 import json
 import os
 import os.path as osp
-import platform
 import shutil
 from dataclasses import asdict
 
@@ -20,7 +19,10 @@ from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import ap_drop as ad
 from cbnet_lab import config_edits as ce
+from cbnet_lab import plan
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab import run as lab_run
+from cbnet_lab import summary
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
@@ -66,21 +68,21 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,
         'dehazers.py')).fog_dehazer_checkpoint)
     save_untrained_dehazer(dehazer_file)
     trained, tested = [], []
-    train, evaluate = Runner.train, ad.evaluate_checkpoint
+    train, evaluate = Runner.train, ad.evaluate
 
     def spy_train(runner):
         trained.append(osp.relpath(runner.work_dir, tmp_path / 'runs'))
         return train(runner)
 
-    def spy_evaluate(cfg, checkpoint, work_dir, name, prefix='test'):
-        tested.append((osp.relpath(work_dir, tmp_path / 'runs'),
-                       osp.relpath(checkpoint, tmp_path / 'runs'),
+    def spy_evaluate(cfg):
+        tested.append((osp.relpath(cfg.work_dir, tmp_path / 'runs'),
+                       osp.relpath(cfg.load_from, tmp_path / 'runs'),
                        cfg.test_condition,
                        cfg.model.data_preprocessor.type))
-        return evaluate(cfg, checkpoint, work_dir, name, prefix)
+        return evaluate(cfg)
 
     monkeypatch.setattr(Runner, 'train', spy_train)
-    monkeypatch.setattr(ad, 'evaluate_checkpoint', spy_evaluate)
+    monkeypatch.setattr(ad, 'evaluate', spy_evaluate)
     tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'fog_transfer', '--data-root', street,
             '--transfer-root', fog, '--work-dir', str(tmp_path / 'runs'),
@@ -228,49 +230,22 @@ def fake_runs(monkeypatch):
             'coco street': {'coco/bbox_mAP': 0.5},
             'real fog': {'coco/bbox_mAP': 0.2}})
 
-    monkeypatch.setattr(rc, 'run_recipe', fake_run_recipe)
-    monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
-    monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    monkeypatch.setattr(lab_run, 'run_recipe', fake_run_recipe)
+    monkeypatch.setattr(plan, 'check_pretrained', lambda *a: None)
+    monkeypatch.setattr(plan, 'check_transfer', lambda *a: None)
+    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
     return calls
-
-
-def hold(run_dir):
-    """Lock a run's folder for a live process (this test's parent)."""
-    os.makedirs(run_dir, exist_ok=True)
-    with open(osp.join(run_dir, '.lock'), 'w') as f:
-        f.write(f'{platform.node()}:{os.getppid()}')
-
-
-def test_a_test_only_row_waits_for_its_source_in_other_hands(
-        tmp_path, monkeypatch):
-    """Two processes on one comparison: while another live process trains
-    the clear row, the test-only row of the same seed is deferred with it
-    (no error about missing weights)."""
-    out = str(tmp_path / 'runs')
-    recipes = [r for r in rc.resolve_recipes('fog_transfer')
-               if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
-    ran = fake_runs(monkeypatch)
-    hold(osp.dirname(rc.result_file(out, recipes[0][0], 0)))
-    logs = []
-    record = rc.compare(recipes, [0], ce.Budget(iters=2),
-                        str(tmp_path), [], out, log=logs.append,
-                        set_name='fog_transfer', wait=False)
-    assert ran == []
-    assert record['in_progress'] == [[recipes[0][0], 0], [recipes[1][0], 0]]
-    assert any('which another process is still training' in line
-               for line in logs)
 
 
 def test_transfer_test_is_checked(tmp_path):
     cfg = Config(dict(test_condition='coco street', transfer_test=dict(
         condition='real fog', data_root=str(tmp_path / 'missing'))))
     cfg.filename = 'x.py'
-    assert ad.transfer_test(cfg)['condition'] == 'real fog'
+    assert ce.transfer_test(cfg)['condition'] == 'real fog'
     with pytest.raises(FileNotFoundError, match='--transfer-root'):
-        ad.transfer_cfg(cfg)
+        ce.transfer_cfg(cfg)
     # a config made to test real fog itself tests no second set after it
-    assert 'transfer_test' not in ad.real_fog_cfg(Config(dict(
+    assert 'transfer_test' not in ce.real_fog_cfg(Config(dict(
         transfer_test=dict(condition='fog', data_root=str(tmp_path)),
         test_dataloader=dict(dataset=dict(pipeline=[])))), str(tmp_path))
     for bad, match in (
@@ -282,7 +257,7 @@ def test_transfer_test_is_checked(tmp_path):
              'also the name')):
         cfg.transfer_test = bad
         with pytest.raises(ValueError, match=match):
-            ad.transfer_test(cfg)
+            ce.transfer_test(cfg)
 
 
 def test_transfer_root_and_ceiling_errors(tmp_path):
@@ -339,16 +314,14 @@ def test_find_trained(tmp_path):
         rc.check_weights_from(street)
     path = finished_run(street, name, 0, budget)
     rc.check_weights_from(street)
-    assert rc.find_trained(street, name, 0, budget) == (path, False)
+    assert rc.find_trained(street, name, 0, budget) == path
     # restored from a record, without its weights: not usable here
     finished_run(street, name, 1, budget, weights=False)
-    assert rc.find_trained(street, name, 1, budget) == (None, False)
-    # never run (and the other set's folder left as it was) / being
-    # trained by a live process
-    assert rc.find_trained(street, name, 2, budget) == (None, False)
+    assert rc.find_trained(street, name, 1, budget) is None
+    # never run, or not finished (and the other set's folder left as it
+    # was)
+    assert rc.find_trained(street, name, 2, budget) is None
     assert not osp.exists(osp.dirname(rc.result_file(street, name, 2)))
-    hold(osp.dirname(rc.result_file(street, name, 2)))
-    assert rc.find_trained(street, name, 2, budget) == (None, True)
     # another budget, other overrides, other data: refused
     with pytest.raises(ValueError, match='another budget'):
         rc.find_trained(street, name, 0, ce.Budget(iters=3))
@@ -369,14 +342,18 @@ def test_a_run_trained_elsewhere_is_tested_not_trained(
                           resumed_at_iter=1, train_time_extrapolated=True)
     tested = []
 
-    def fake_ap_drop(cfg, checkpoint, work_dir, betas, transfer_root):
-        tested.append(checkpoint)
+    def fake_ap_drop_cfgs(cfg, checkpoint, work_dir, betas, transfer_root):
+        return {'coco street': checkpoint}
+
+    def fake_ap_drop(cfgs):
+        tested.extend(cfgs.values())
         return dict(metrics={'coco street': {'coco/bbox_mAP': 0.5}})
 
     def no_training(*args, **kwargs):
         raise AssertionError('nothing may be trained')
 
-    monkeypatch.setattr(rc, 'ap_drop', fake_ap_drop)
+    monkeypatch.setattr(lab_run, 'ap_drop_cfgs', fake_ap_drop_cfgs)
+    monkeypatch.setattr(lab_run, 'ap_drop', fake_ap_drop)
     monkeypatch.setattr(Runner, 'from_cfg', no_training)
     name, config = rc.resolve_recipes('fog_transfer')[0]
     result = rc.run_recipe(name, config, 0, budget, str(tmp_path), [], out,
@@ -397,28 +374,27 @@ def test_a_run_trained_elsewhere_is_tested_not_trained(
 
 def test_compare_takes_what_the_other_set_trained(tmp_path, monkeypatch):
     """Seed 0 finished there (tested here, the DCP row then tests the same
-    weights), seed 1 never run there (trained here), seed 2 being trained
-    there by a live process (waited for: left out with wait=False)."""
+    weights), seed 1 never run there (trained here), the test-only row
+    after the clear row of the same seed."""
     street, out = str(tmp_path / 'street'), str(tmp_path / 'runs')
     budget = ce.Budget(iters=2)
     recipes = [r for r in rc.resolve_recipes('fog_transfer')
                if r[0] in ('Cascade Mask R-CNN, clear', ROWS[3])]
     source = finished_run(street, 'Cascade Mask R-CNN', 0, budget)
-    hold(osp.dirname(rc.result_file(street, 'Cascade Mask R-CNN', 2)))
     calls = fake_runs(monkeypatch)
     logs = []
-    record = rc.compare(recipes, [0, 1, 2], budget, str(tmp_path), [], out,
+    record = rc.compare(recipes, [0, 1], budget, str(tmp_path), [], out,
                         log=logs.append, set_name='fog_transfer',
-                        wait=False, weights_from=street)
+                        weights_from=street)
     clear, dcp = recipes[0][0], recipes[1][0]
     assert calls == [(clear, 0, source, None), (dcp, 0, None, clear),
                      (clear, 1, None, None), (dcp, 1, None, clear)]
-    assert record['in_progress'] == [[clear, 2], [dcp, 2]]
+    assert [(r['recipe'], r['seed']) for r in record['runs']] == [
+        (clear, 0), (dcp, 0), (clear, 1), (dcp, 1)]
     assert record['weights_from'] == street
     said = '\n'.join(logs)
     assert f'testing the weights trained in {osp.dirname(source)}' in said
     assert "training (no finished run of 'Cascade Mask R-CNN'" in said
-    assert f'another process is training in {street}, later' in said
     # a set none of whose rows train as another's: --weights-from refused
     with pytest.raises(ValueError, match='is for fog_transfer'):
         rc.compare(rc.resolve_recipes('coco_street')[:1], [0], budget,

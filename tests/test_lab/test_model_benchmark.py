@@ -13,7 +13,8 @@ EDGE = 'edge_fcos-lite_320'
 
 
 def test_checkpoint_loads_strictly(tmp_path):
-    from cbnet_lab.benchmark import build_detector, load_benchmark_cfg
+    from cbnet_lab.benchmark import build_detector
+    from cbnet_lab.config_edits import load_benchmark_cfg
     from cbnet_lab.model_benchmark import Bench
     bench_script = load_tool('analysis_tools/benchmark.py')
     trained = build_detector(load_benchmark_cfg(

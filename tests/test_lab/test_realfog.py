@@ -18,9 +18,7 @@ from cbnet_tools.synthetic.voc_folder import (tiny_fog_folder,
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report
-from cbnet_lab.ap_drop import (ap_drop, default_betas,
-                               real_fog_cfg,
-                               with_empty_coco_results)
+from cbnet_lab.ap_drop import ap_drop, with_empty_coco_results
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
@@ -73,13 +71,13 @@ def test_real_fog_config_scores_an_oracle_100(fog_root, tmp_path):
     cfg, ckpt = oracle_cfg(Config.fromfile(osp.join(
         REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py')),
         fog_root, tmp_path)
-    assert default_betas(cfg) == []
-    table = ap_drop(cfg, ckpt, str(tmp_path / 'all'), [])
+    assert ce.default_betas(cfg) == []
+    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'all'), []))
     assert list(table['metrics']) == ['real fog']
     assert table['rows'][0]['box AP'] == pytest.approx(100.0)
     assert table['rows'][0]['mask AP'] is None  # boxes only
     with pytest.raises(ValueError, match='no synthetic-fog twin'):
-        ap_drop(cfg, ckpt, str(tmp_path / 'x'), [0.02])
+        ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'x'), [0.02])
 
 
 def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
@@ -105,8 +103,8 @@ def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
     assert 'drop' not in (tmp_path / 'out' / 'ap_drop.md').read_text()
     with open(tmp_path / 'out' / 'ap_drop.json') as f:
         assert json.load(f)['rows'] == table['rows']
-    real = real_fog_cfg(Config.fromfile(DATASET_CFG), '/data/rtts',
-                        img_suffix='.png')
+    real = ce.real_fog_cfg(Config.fromfile(DATASET_CFG), '/data/rtts',
+                           img_suffix='.png')
     ds = real.test_dataloader.dataset
     assert (ds.type, ds.split, ds.img_suffix) == \
         ('CBNetVOCFogDataset', 'val', '.png')
@@ -125,7 +123,7 @@ def test_a_model_that_detects_nothing_scores_0_not_missing(tmp_path):
     cfg, ckpt = oracle_cfg(Config.fromfile(osp.join(
         REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py')),
         root, tmp_path, drop_class=car)
-    table = ap_drop(cfg, ckpt, str(tmp_path / 'none'), [])
+    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'none'), []))
     assert table['metrics']['real fog'] == {
         'coco/bbox_mAP': 0.0, 'coco/bbox_mAP_50': 0.0,
         'coco/bbox_mAP_75': 0.0}

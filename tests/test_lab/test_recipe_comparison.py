@@ -9,8 +9,11 @@ import pytest
 from tool_helpers import load_tool
 
 from cbnet_lab import config_edits as ce
+from cbnet_lab import executors, plan
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report
+from cbnet_lab import run as lab_run
+from cbnet_lab import summary
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -254,13 +257,7 @@ def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
     def no_training(*args, **kwargs):
         raise AssertionError('--report-only trained a run')
 
-    monkeypatch.setattr(rc, 'run_recipe', no_training)
-    monkeypatch.setattr(rc, 'weights_sources',
-                        lambda recipes, rows=None: {n: None
-                                                    for n, _ in recipes})
-    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
-    monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    stub_comparison(monkeypatch, no_training)
     logs = []
     got = rc.compare([('x', 'x.py'), ('y', 'y.py')], [0, 1], budget,
                      str(tmp_path / 'no_data_here'), [0.02], out,
@@ -278,81 +275,26 @@ def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
                    log=logs.append, train=False)
 
 
-def test_run_lock_is_exclusive_and_a_dead_holder_is_taken_over(tmp_path):
-    import os
-    import platform
-    import subprocess
-    import sys
-    a, b = rc.RunLock(str(tmp_path)), rc.RunLock(str(tmp_path))
-    assert a.acquire()
-    assert not b.acquire()
-    assert b.holder() == f'{platform.node()}:{os.getpid()}'
-    a.release()
-    assert b.acquire()
-    b.release()
-    assert b.holder() is None
-    # a lock left by a process that has exited is stale: taken over
-    dead = subprocess.run([sys.executable, '-c', 'import os; '
-                           'print(os.getpid())'], capture_output=True,
-                          text=True).stdout.strip()
-    (tmp_path / '.lock').write_text(f'{platform.node()}:{dead}')
-    assert a.acquire() and a.holder().endswith(f':{os.getpid()}')
-    a.release()
-    # another host's lock is never taken over from here
-    (tmp_path / '.lock').write_text('elsewhere:1')
-    assert not a.acquire()
-
-
-def fake_training(tmp_path, monkeypatch, run_recipe):
-    """compare() with ``run_recipe`` in place of training, no weights
+def stub_comparison(monkeypatch, run_recipe):
+    """compare() with ``run_recipe`` in place of each run, no weights
     sources, clear val as reference, no pretrained files, no second test
-    set, no plot, and a val file under ``tmp_path / 'data'``."""
-    monkeypatch.setattr(rc, 'run_recipe', run_recipe)
-    monkeypatch.setattr(rc, 'weights_sources',
+    set and no plot."""
+    monkeypatch.setattr(lab_run, 'run_recipe', run_recipe)
+    monkeypatch.setattr(plan, 'weights_sources',
                         lambda recipes, rows=None: {n: None
                                                     for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
-    monkeypatch.setattr(rc, 'check_pretrained', lambda *a: None)
-    monkeypatch.setattr(rc, 'check_transfer', lambda *a: None)
-    monkeypatch.setattr(rc, 'plot', lambda *a, **k: None)
+    monkeypatch.setattr(plan, 'check_pretrained', lambda *a: None)
+    monkeypatch.setattr(plan, 'check_transfer', lambda *a: None)
+    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
+
+
+def fake_training(tmp_path, monkeypatch, run_recipe):
+    """:func:`stub_comparison` and a val file under ``tmp_path / 'data'``."""
+    stub_comparison(monkeypatch, run_recipe)
     ann = tmp_path / 'data' / 'annotations'
     ann.mkdir(parents=True)
     (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
-
-
-def test_compare_waits_for_runs_held_by_another_process(tmp_path,
-                                                        monkeypatch):
-    """A run locked by a live process is skipped, then read back once its
-    result appears; nothing is trained twice."""
-    out = str(tmp_path)
-    trained = []
-
-    def fake_run_recipe(name, config, seed, *args, **kwargs):
-        trained.append((name, seed))
-        return fake_run(name, seed, 0.5, 0.4)
-
-    fake_training(tmp_path, monkeypatch, fake_run_recipe)
-    other = rc.RunLock(osp.dirname(rc.result_file(out, 'x', 1)))
-    assert other.acquire()  # "another process" trains x, seed 1
-    calls = []
-
-    def finish_other(_):
-        # the other process finishes while we wait
-        calls.append(1)
-        path = rc.result_file(out, 'x', 1)
-        with open(path, 'w') as f:
-            json.dump(fake_run('x', 1, 0.7, 0.6), f)
-        other.release()
-
-    monkeypatch.setattr(rc.time, 'sleep', finish_other)
-    logs = []
-    record = rc.compare([('x', 'x.py')], [0, 1], ce.Budget(iters=1),
-                        str(tmp_path / 'data'), [0.02], out,
-                        log=logs.append)
-    assert trained == [('x', 0)] and calls == [1]
-    assert any('being trained by process' in line for line in logs)
-    assert [r['seed'] for r in record['runs']] == [0, 1]
-    assert record['runs'][1]['metrics']['clear']['coco/segm_mAP'] == 0.7
 
 
 def test_the_record_names_the_gpu_the_runs_trained_on(tmp_path,
@@ -369,9 +311,9 @@ def test_the_record_names_the_gpu_the_runs_trained_on(tmp_path,
                           str(tmp_path / 'data'), [0.02], str(out),
                           log=lambda *a: None)
 
-    monkeypatch.setattr(rc, 'get_device', lambda: 'cpu')
+    monkeypatch.setattr(executors, 'get_device', lambda: 'cpu')
     assert compare(tmp_path / 'cpu')['machine'].startswith('CPU ')
-    monkeypatch.setattr(rc, 'get_device', lambda: 'cuda')
+    monkeypatch.setattr(executors, 'get_device', lambda: 'cuda')
     monkeypatch.setattr(torch.cuda, 'get_device_name',
                         lambda device=None: 'NVIDIA FakeGPU')
     line = compare(tmp_path / 'gpu')['machine']

@@ -17,11 +17,9 @@ from mmdet.registry import MODELS
 from mmengine.config import Config
 from mmengine.fileio import dump
 
-from cbnet_lab.robustness import (CORRUPTION_GROUPS,
-                                  check_corruptions,
-                                  corrupted_cfg,
-                                  resolve_corruptions,
-                                  summarize)
+from cbnet_lab.config_edits import corrupted_cfg
+from cbnet_lab.robustness import (CORRUPTION_GROUPS, check_corruptions,
+                                  resolve_corruptions, summarize)
 
 ROOT = osp.join(osp.dirname(__file__), '..', '..')
 DEMO = osp.join(ROOT, 'configs', 'demo',

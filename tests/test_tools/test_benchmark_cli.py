@@ -14,7 +14,7 @@ import torch
 
 from tool_helpers import load_tool
 
-import cbnet_lab.benchmark as benchmark_utils
+from cbnet_lab.config_edits import load_benchmark_cfg
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 SCRIPT = osp.join(ROOT, 'tools', 'analysis_tools', 'benchmark.py')
@@ -163,7 +163,7 @@ def test_test_time_proposal_count_is_recorded(tmp_path):
         '--threads', '1', '--out-dir', str(tmp_path)
     ])
     results, _ = bench_script.run(args, lambda res, sca: None)
-    cfg = benchmark_utils.load_benchmark_cfg(
+    cfg = load_benchmark_cfg(
         osp.join(ROOT, args.configs['cbnet_mit-b0']))
     keep = cfg.model.test_cfg.rpn.max_per_img
     assert keep < 1000

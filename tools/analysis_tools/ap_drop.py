@@ -38,8 +38,8 @@ import os.path as osp
 from mmengine.config import Config, DictAction
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_lab.ap_drop import (ap_drop, default_betas,
-                               real_fog_cfg, to_markdown)
+from cbnet_lab.ap_drop import ap_drop, to_markdown
+from cbnet_lab.config_edits import ap_drop_cfgs, default_betas, real_fog_cfg
 from cbnet_tools.quick_eval import first_images_cfg
 
 
@@ -76,7 +76,7 @@ def main(argv=None):
             cfg, args.num_images,
             osp.join(args.out_dir, f'first_{args.num_images}_images'))
     betas = default_betas(cfg) if args.betas is None else args.betas
-    table = ap_drop(cfg, args.checkpoint, args.out_dir, betas)
+    table = ap_drop(ap_drop_cfgs(cfg, args.checkpoint, args.out_dir, betas))
     md = to_markdown(table)
     print(md)
     with open(osp.join(args.out_dir, 'ap_drop.md'), 'w') as f:

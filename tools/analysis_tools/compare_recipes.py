@@ -86,13 +86,19 @@ recipes can be told apart; docs/accuracy.md); `coco_street` and
 of docs/accuracy.md "Real masks" and docs/robustness.md "Real fog on a
 pretrained trunk") are the default of the set of the same name, as is
 `fog_transfer` (the coco_street budget, DAWN as the second test set).
-Two processes may run the same comparison at once (one per core,
---threads 1): each run is locked by the process that trains it (--no-
-wait: a process leaves the runs that others train out of its table and
-ends, e.g. to start its next comparison; --report-only tabulates them
-later). A run saves a checkpoint every sixth of its iterations; a run
-killed mid-way resumes from it when the comparison is started again (its
-record says ``resumed_at_iter``).
+
+Where the runs run (recipe x seed, each in its own folder): one after
+another in this process (the default); --jobs N: N worker processes on
+this machine (e.g. one per core with --threads 1, or several runs on one
+GPU); --executor ray: each run a Ray task with --run-cpus / --run-gpus of
+its own, on the Ray cluster at --address or on a local Ray (--jobs N: N
+runs at once). A test-time variant runs after the run whose weights it
+tests. The comparison's record is the same whichever runs them. A run
+saves a checkpoint every sixth of its iterations; a sweep killed mid-way
+goes on when the same command is started again: finished runs are read
+back, a run cut short resumes from its checkpoint (its record says
+``resumed_at_iter``). Start one command per work dir (it runs every run
+of it itself; --no-wait and the runs' lock files are gone).
 
 Recipes whose configs set ``test_condition`` (real data, like the realfog
 set) take ``--data-root`` as their data (default: the config's) and are
@@ -104,12 +110,14 @@ Examples::
         --convert
     OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
         --set arch --seeds 0 1 2 --iters 120
-    # the benchmark: data once, then the parts set, two processes
+    # the benchmark: data once, then the parts set, two runs at once
     python tools/misc/generate_cityscapes_like.py \
         data/cityscapes_like_bench --preset bench --nproc 2 --convert
-    for i in 1 2; do OMP_NUM_THREADS=1 python \
-        tools/analysis_tools/compare_recipes.py --set parts \
-        --preset bench --threads 1 & done; wait
+    OMP_NUM_THREADS=1 python tools/analysis_tools/compare_recipes.py \
+        --set parts --preset bench --threads 1 --jobs 2
+    # the same on a Ray cluster, a GPU for each run
+    python tools/analysis_tools/compare_recipes.py --set parts \
+        --preset bench --executor ray --address auto --run-gpus 1
     # your own configs, on the real data
     python tools/analysis_tools/compare_recipes.py \
         --configs mine=configs/my.py baseline=configs/base.py \
@@ -142,6 +150,18 @@ import argparse
 import sys
 
 from mmengine.config import DictAction
+
+
+class Removed(argparse.Action):
+    """An option that is no more: its use is an error saying why."""
+
+    def __init__(self, option_strings, dest, why='', **kwargs):
+        self.why = why
+        super().__init__(option_strings, dest, nargs=0,
+                         help=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.error(f'{option_string} was removed: {self.why}')
 
 
 def parse_args(argv=None):
@@ -214,9 +234,29 @@ def parse_args(argv=None):
                         help='train and test nothing: tabulate the '
                         'finished runs in --work-dir (with --restore, the '
                         "record's) and list the ones left out")
-    parser.add_argument('--no-wait', action='store_true',
-                        help='leave the runs other processes are training '
-                        'out of this table instead of waiting for them')
+    parser.add_argument('--jobs', type=int, metavar='N',
+                        help='runs at once: N worker processes on this '
+                        'machine (default: one run after another in this '
+                        'process); with --executor ray, N runs in flight at '
+                        'most (default: as many as the resources take)')
+    parser.add_argument('--executor', choices=['local', 'ray'],
+                        default='local',
+                        help='local: this machine (default); ray: each run '
+                        'a Ray task (Ray: requirements/serve.txt)')
+    parser.add_argument('--address', metavar='RAY_ADDRESS',
+                        help='the Ray cluster (ray.init address, e.g. auto '
+                        'or HOST:6379; its nodes see the work dir, data and '
+                        'code at the same paths); default: a local Ray on '
+                        'this machine, --jobs x --run-cpus CPUs')
+    parser.add_argument('--run-cpus', type=float, default=None,
+                        help='CPUs of each run on Ray (default 1)')
+    parser.add_argument('--run-gpus', type=float, default=None,
+                        help='GPUs of each run on Ray (default 0: on the '
+                        'CPU; 0.5: two runs share a GPU)')
+    parser.add_argument('--no-wait', action=Removed,
+                        why='runs are no longer locked; one command runs '
+                        "every run of its work dir (several at once: --jobs "
+                        'N, or --executor ray)')
     parser.add_argument('--cfg-options', nargs='+', action=DictAction,
                         help='overrides applied to every config; each run '
                         'records them, and a run trained with other '
@@ -235,6 +275,12 @@ def parse_args(argv=None):
             setattr(args, key, getattr(preset, key))
     if args.iters < 0 or args.batch_size < 1 or not args.seeds:
         parser.error('--iters >= 0, --batch-size >= 1 and one seed or more')
+    if args.jobs is not None and args.jobs < 1:
+        parser.error('--jobs N: N >= 1')
+    ray_only = [f'--{k.replace("_", "-")}' for k in (
+        'address', 'run_cpus', 'run_gpus') if getattr(args, k) is not None]
+    if ray_only and args.executor != 'ray':
+        parser.error(f'{" ".join(ray_only)}: for --executor ray')
     return args
 
 
@@ -252,6 +298,20 @@ def data_and_betas(args, recipes) -> tuple:
         data_root = read_config(recipes[0][1]).data_root if real \
             else rc.PRESETS[args.preset].data_root
     return data_root, betas
+
+
+def executor_of(args):
+    """Where the runs run (``--executor``, ``--jobs``); nothing for a
+    tabulation (``--report-only``)."""
+    from contextlib import nullcontext
+
+    from cbnet_lab.executors import make_executor
+    if args.report_only:
+        return nullcontext()
+    return make_executor(
+        args.executor, args.jobs, args.address,
+        1 if args.run_cpus is None else args.run_cpus,
+        0 if args.run_gpus is None else args.run_gpus, args.threads)
 
 
 def main(argv=None) -> dict:
@@ -277,16 +337,16 @@ def main(argv=None) -> dict:
     if args.restore:
         n = rc.restore_runs(args.restore, work_dir, budget)
         print(f'restored {n} finished run(s) from {args.restore}')
-    record = rc.compare(recipes, args.seeds, budget, data_root,
-                        betas, work_dir, args.cfg_options,
-                        set_name=args.set, train=not args.report_only,
-                        wait=not args.no_wait,
-                        transfer_root=args.transfer_root,
-                        ceiling_record=args.ceiling,
-                        weights_from=args.weights_from)
-    if 'summary' in record:  # else nothing had finished (--no-wait)
-        print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
-              'compare.png')
+    with executor_of(args) as executor:
+        record = rc.compare(recipes, args.seeds, budget, data_root,
+                            betas, work_dir, args.cfg_options,
+                            set_name=args.set, train=not args.report_only,
+                            transfer_root=args.transfer_root,
+                            ceiling_record=args.ceiling,
+                            weights_from=args.weights_from,
+                            executor=executor)
+    print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
+          'compare.png')
     return record
 
 

@@ -42,10 +42,10 @@ from mmengine.config import Config, DictAction
 from mmengine.fileio import dump
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
-from cbnet_lab.robustness import (SUMMARY_METRICS,
-                                  plot_fog_density,
-                                  run_benchmark, summarize,
-                                  to_markdown)
+from cbnet_lab.config_edits import robustness_cfgs
+from cbnet_lab.robustness import (SUMMARY_METRICS, plot_fog_density,
+                                  resolve_corruptions, run_benchmark,
+                                  summarize, to_markdown)
 from cbnet_tools.markdown import markdown_table
 from cbnet_tools.quick_eval import first_images_cfg
 
@@ -93,8 +93,9 @@ def main(argv=None):
         print('severity 0 (clean) added: P, mPC and rPC need it')
         args.severities = [0] + list(args.severities)
     os.makedirs(args.out_dir, exist_ok=True)
-    run = run_benchmark(cfg, args.checkpoint, args.out_dir,
-                        args.corruptions, args.severities, args.betas)
+    run = run_benchmark(robustness_cfgs(
+        cfg, args.checkpoint, args.out_dir,
+        resolve_corruptions(args.corruptions), args.severities, args.betas))
     report = dict(config=args.config, checkpoint=args.checkpoint,
                   summaries={}, betas=run['betas'])
     tables = []

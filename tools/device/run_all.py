@@ -32,9 +32,9 @@ starts; what it finished is kept):
 ``harness``
     Each set of ``--sets`` with ``tools/analysis_tools/compare_recipes.py``
     at its device budget (:data:`SETS`), every run (recipe x seed) in its
-    own process at once on the one GPU (the harness's run locks share them
-    out), one torch thread each; then ``--report-only`` tabulates the runs
-    that finished, so a set cut off by its box still has its record.
+    own worker process at once on the one GPU (``--jobs N``), one torch
+    thread each; then ``--report-only`` tabulates the runs that finished,
+    so a set cut off by its box still has its record.
 
 ``--dry-run`` runs every step on the CPU with a tiny budget (nothing is
 installed or built; tiny generated data where ``--data`` lacks a set's).
@@ -823,10 +823,11 @@ def step_harness(r: Runner, env) -> dict:
                 cmd += ['--weights-from', trained]
         n = min(count_runs(r.args, set_env, name, set_args),
                 r.args.max_procs)
+        cmd += ['--jobs', str(n)]  # one command, n worker processes
         rec.update(processes=n, command=' '.join(map(shlex.quote, cmd)))
         r.log(f'harness {name}: {n} processes, box {share:.0f} s')
         launched = time.time()
-        res = rec['result'] = run_parallel(r, cmd, n, share,
+        res = rec['result'] = run_parallel(r, cmd, 1, share,
                                            f'harness_{name}', set_env)
         record = osp.join(work, 'compare.json')
         if res['rc'] != 0 or not osp.isfile(record) or \

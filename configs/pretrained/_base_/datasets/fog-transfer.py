@@ -5,7 +5,7 @@
 # (coco-street_instance.py, with their masks: CBNet-DD distils mask logits)
 # and the harness tests each checkpoint twice, on the config's own test set
 # (COCO street val, clear) and on the set named here, real fog: DAWN's fog
-# and haze val photos through cbnet_lab.ap_drop.real_fog_cfg (the
+# and haze val photos through cbnet_lab.config_edits.real_fog_cfg (the
 # recipe's own test pipeline, boxes only; DAWN's VOC names read as the
 # project's 8 classes, motorbike -> motorcycle, as the realfog_pretrained
 # set reads them). The split is that of configs/realfog/_base_/

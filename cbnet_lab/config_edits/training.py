@@ -1,13 +1,7 @@
-"""Config edits of the lab: one run's config from a recipe, a budget and
-a seed (:func:`budget_cfg`), and the edits it is made of (move the data,
-resize every pipeline), plus where a killed run resumes from.
-
-Each edit walks the whole config (wrapped or paired datasets, evaluator
-lists), so a recipe's structure does not matter, and fails loudly when it
-would silently not apply.
+"""The training config of a run: a recipe under a budget and a seed
+(:func:`budget_cfg`), the edits it is made of (move the data, resize every
+pipeline), and where a killed run resumes from.
 """
-import copy
-import os
 import os.path as osp
 import re
 from dataclasses import dataclass
@@ -17,67 +11,7 @@ from mmengine.config import Config
 
 from cbnet_mmdet.utils.checkpoint.files import last_checkpoint_in
 
-
-def configs_root() -> str:
-    """The shipped ``configs`` folder (source tree or installed wheel)."""
-    import cbnet_mmdet
-    pkg = osp.dirname(osp.abspath(cbnet_mmdet.__file__))
-    for root in (osp.join(osp.dirname(pkg), 'configs'),
-                 osp.join(pkg, '.mim', 'configs')):
-        if osp.isdir(root):
-            return root
-    raise FileNotFoundError(
-        'cbnet_mmdet: no configs folder next to the package or in its '
-        '.mim folder')
-
-
-_READ_CONFIGS = {}
-#: a ``{{$VAR:default}}`` of MMEngine's configs (its own pattern's start)
-_ENV_REFERENCE = re.compile(r'''\{\{['\"]?\s*\$(\w+)\s*:''')
-
-
-def read_config(path: str) -> Config:
-    """``Config.fromfile(path)``, parsed once per process; a deep copy each
-    call, so editing it changes nothing for the next caller.
-
-    A comparison reads each recipe's config several times (its test
-    condition, transfer set, trunk weights, the run's own config), and
-    every ``mmdet::`` base in it makes MMEngine read all of MMDet's
-    metafiles again (about a second each on the project's CPU). The parse
-    is keyed by the file's real path, size and modification time, so a
-    config rewritten in place is read again (its ``_base_`` files are
-    assumed unchanged while the process runs), and it is checked against
-    the environment variables that the config and its bases name in
-    MMEngine's ``{{$VAR:default}}`` form (the pretrained recipes read
-    ``CBNET_PRETRAINED_DIR``): one of those set, changed or unset since
-    the parse reads the file again; any other variable changes nothing (a
-    test runner sets one per test).
-
-    The copy's text is not run through yapf: MMEngine formats a config's
-    ``pretty_text`` with it each time a runner logs, dumps or checkpoints
-    the config (4-6 times per lab run, about a second each for a cascade
-    recipe on the project's CPU, half of a short test run). The text is
-    the same Python, only its line breaks differ. ``Config.fromfile`` of
-    MMEngine 0.10.7 drops its own ``format_python_code`` argument for a
-    plain config, hence the explicit ``Config(...)`` here.
-    """
-    real = osp.realpath(path)
-    if not osp.isfile(real):
-        raise FileNotFoundError(f'config file not found: {path}')
-    stat = os.stat(real)
-    key = (real, stat.st_size, stat.st_mtime_ns)
-    cached = _READ_CONFIGS.get(key)
-    if cached is None or any(os.environ.get(name) != value
-                             for name, value in cached[1].items()):
-        cfg = Config.fromfile(path)
-        cfg = Config(cfg.to_dict(), cfg_text=cfg.text, filename=cfg.filename,
-                     env_variables=cfg.env_variables,
-                     format_python_code=False)
-        # cfg.text is the file's text after its bases' texts, as written
-        read = {name: os.environ.get(name)
-                for name in set(_ENV_REFERENCE.findall(cfg.text))}
-        cached = _READ_CONFIGS[key] = (cfg, read)
-    return copy.deepcopy(cached[0])
+from .reading import read_config
 
 
 @dataclass
@@ -196,7 +130,8 @@ def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
 
 
 def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
-               work_dir: str, cfg_options: Optional[dict] = None) -> Config:
+               work_dir: str, cfg_options: Optional[dict] = None,
+               experiment_name: Optional[str] = None) -> Config:
     """The config of one run: ``config`` under ``budget`` and ``seed``.
 
     The training loop becomes iteration-based (``budget.iters``), the lr
@@ -213,6 +148,8 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
         data_root (str): Dataset root in the Cityscapes layout.
         work_dir (str): The run's folder.
         cfg_options (dict, optional): Overrides applied last.
+        experiment_name (str, optional): MMEngine's name of the run (its
+            log folder's), kept by the run's tests as their prefix.
 
     Returns:
         Config: The run's config.
@@ -277,6 +214,8 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
         load_from = cfg.get('load_from')
         cfg.load_from = None if load_from is None else str(
             load_from).replace('{seed}', str(seed))
+    if experiment_name is not None:
+        cfg.experiment_name = experiment_name
     return cfg
 
 

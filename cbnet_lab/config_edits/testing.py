@@ -1,0 +1,356 @@
+"""The test configs of a checkpoint: clear or foggy val, real fog, a
+config's second test set, corrupted images, each a test-only runner's
+config (:func:`test_cfg`), composed per measurement by
+:func:`ap_drop_cfgs` (the AP drop) and :func:`robustness_cfgs` (the
+corruption benchmark).
+
+Real data. A config that sets ``test_condition = NAME`` (the real-fog
+configs under ``configs/realfog/``: ``'real fog'``) tests real foggy
+photographs, which have no clear twin and no fog density: its test set is
+evaluated as it is, under that name, and foggy betas are an error.
+:func:`real_fog_cfg` turns any detector config of the project into one:
+its model and test pipeline on the val split of a VOC real-fog folder,
+boxes only.
+
+Transfer. A config that also sets ``transfer_test = dict(condition=NAME,
+data_root=VOC_FOLDER, ...)`` (the fog_transfer recipes of
+``configs/pretrained/fog_transfer/``: trained on clear photos) is tested
+on its own test set first, then on that real-fog folder under ``NAME``
+(:func:`transfer_cfg`), so the drop from one to the other is reported.
+"""
+import copy
+import os.path as osp
+import re
+from typing import Dict, List, Optional, Sequence
+
+from mmengine.config import Config
+
+from cbnet_mmdet.utils.checkpoint.fit import require_checkpoint_fit
+from cbnet_tools.quick_eval import check_subset_scoring
+
+CLEAR_TYPES = ('CityscapesDataset', 'CBNetCityscapesDataset')
+FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'
+#: ``PackDetInputs``' default ``meta_keys`` (MMDet 3.x).
+PACK_META_KEYS = ('img_id', 'img_path', 'ori_shape', 'img_shape',
+                  'scale_factor', 'flip', 'flip_direction')
+#: Keys of a config's ``transfer_test``: the condition's name and VOC
+#: folder are required, the rest are :class:`CBNetVOCFogDataset`'s split
+#: arguments.
+TRANSFER_KEYS = ('condition', 'data_root', 'split', 'val_fraction',
+                 'split_seed', 'ann_file', 'img_suffix')
+#: Loaders after which ``Corrupt`` is inserted: MMCV's (as a config may
+#: name it) and the project's checking one.
+LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
+                'mmdet.LoadImageFromFile', 'CBNetLoadImageFromFile')
+#: Keys a test-only runner does not build.
+TRAINING_KEYS = ('train_dataloader', 'train_cfg', 'optim_wrapper',
+                 'param_scheduler', 'val_dataloader', 'val_cfg',
+                 'val_evaluator')
+
+
+def test_condition(cfg: Config) -> Optional[str]:
+    """The ``test_condition`` of a real-data config (None: Cityscapes
+    clear / foggy val)."""
+    name = cfg.get('test_condition')
+    if name is not None and (not isinstance(name, str) or not name.strip()):
+        raise ValueError(f'{cfg.filename}: test_condition must be a '
+                         f'non-empty name, got {name!r}')
+    return name
+
+
+def default_betas(cfg: Config,
+                  betas: Sequence[float] = (0.02, )) -> List[float]:
+    """``betas`` for a Cityscapes config, none for a real-data one."""
+    return [] if test_condition(cfg) else list(betas)
+
+
+def transfer_test(cfg: Config) -> Optional[dict]:
+    """The ``transfer_test`` of a config (None when it has none), checked.
+
+    Raises:
+        ValueError: It lacks ``condition`` or ``data_root``, has a key
+            other than :data:`TRANSFER_KEYS`, or names the condition the
+            config's own test set is reported under.
+    """
+    spec = cfg.get('transfer_test')
+    if spec is None:
+        return None
+    where = f'{cfg.filename}: transfer_test'
+    if not isinstance(spec, dict):
+        raise ValueError(f'{where} must be a dict, got {spec!r}')
+    spec = dict(spec)
+    unknown = sorted(set(spec) - set(TRANSFER_KEYS))
+    if unknown:
+        raise ValueError(f'{where}: unknown keys {unknown}; known: '
+                         f'{list(TRANSFER_KEYS)}')
+    for key in ('condition', 'data_root'):
+        if not isinstance(spec.get(key), str) or not spec[key].strip():
+            raise ValueError(f'{where} needs a non-empty {key!r}, got '
+                             f'{spec.get(key)!r}')
+    if spec['condition'] == (test_condition(cfg) or 'clear'):
+        raise ValueError(
+            f"{where}: condition {spec['condition']!r} is also the name of "
+            'the config\'s own test set; give the transfer set another name')
+    return spec
+
+
+def condition_cfg(cfg: Config, beta: Optional[float] = None) -> Config:
+    """Copy of ``cfg`` testing clear images (``beta=None``) or foggy ones.
+
+    Args:
+        cfg (Config): A config whose ``test_dataloader.dataset`` is a
+            (CBNet) Cityscapes or Foggy Cityscapes dataset.
+        beta (float, optional): Fog attenuation coefficient, 1/m.
+
+    Returns:
+        Config: The modified copy.
+    """
+    cfg = copy.deepcopy(cfg)
+    ds = cfg.test_dataloader.dataset
+    if ds.type not in CLEAR_TYPES + (FOGGY_TYPE, ):
+        raise ValueError(
+            f'test_dataloader.dataset.type must be one of '
+            f'{CLEAR_TYPES + (FOGGY_TYPE, )}, got {ds.type!r}')
+    if beta is None:
+        if ds.type == FOGGY_TYPE:
+            ds.type = 'CBNetCityscapesDataset'
+            ds.pop('beta', None)
+    else:
+        ds.type = FOGGY_TYPE
+        ds.beta = beta
+    return cfg
+
+
+def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
+                 **dataset_kwargs) -> Config:
+    """Copy of ``cfg`` that tests its model on a VOC real-fog folder.
+
+    The test set becomes a :class:`CBNetVOCFogDataset` (``split`` of its
+    seeded split, or ``ann_file`` in ``dataset_kwargs``) read with the
+    config's own test pipeline, with masks no longer loaded and the ground
+    truth passed on for ``CocoMetric`` (``'instances'`` in
+    ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
+    (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
+    ``test_condition`` is ``'real fog'``; a ``transfer_test`` is dropped.
+
+    Args:
+        cfg (Config): A detector config of the project (CBNet, CBNet-DD,
+            the baselines, the dehaze pipelines...).
+        data_root (str): The VOC folder (``Annotations/``,
+            ``JPEGImages/``).
+        split (str, optional): ``'train'`` or ``'val'`` of the seeded
+            split; None with an ``ann_file`` image-set file.
+        **dataset_kwargs: More :class:`CBNetVOCFogDataset` arguments
+            (``img_suffix='.png'`` for RTTS, ``ann_file``, ``val_fraction``,
+            ``split_seed``, ``name_map``, ``ignore_names``...).
+
+    Returns:
+        Config: The modified copy.
+    """
+    cfg = copy.deepcopy(cfg)
+    pipeline = []
+    for transform in cfg.test_dataloader.dataset.pipeline:
+        transform = copy.deepcopy(transform)
+        if transform['type'] == 'LoadAnnotations':
+            transform.update(with_bbox=True, with_mask=False, with_seg=False)
+        elif transform['type'] == 'PackDetInputs':
+            keys = tuple(transform.get('meta_keys', PACK_META_KEYS))
+            transform['meta_keys'] = keys + ('instances', ) * (
+                'instances' not in keys)
+        pipeline.append(transform)
+    dataset = dict(type='CBNetVOCFogDataset', data_root=data_root,
+                   ann_file='', test_mode=True, pipeline=pipeline)
+    if split is not None:
+        dataset['split'] = split
+    dataset.update(dataset_kwargs)
+    cfg.test_dataloader.dataset = dataset
+    cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
+    cfg.test_condition = 'real fog'
+    # it tests real fog itself now: no second test set after it
+    cfg.pop('transfer_test', None)
+    return cfg
+
+
+def transfer_cfg(cfg: Config, data_root: Optional[str] = None) -> Config:
+    """Copy of ``cfg`` testing its model on its ``transfer_test`` set.
+
+    Args:
+        cfg (Config): A config with ``transfer_test``.
+        data_root (str, optional): The VOC folder, in place of
+            ``transfer_test.data_root``.
+
+    Returns:
+        Config: :func:`real_fog_cfg` of ``cfg`` on that folder, its
+        ``test_condition`` the transfer condition's name.
+    """
+    spec = transfer_test(cfg)
+    if spec is None:
+        raise ValueError(f'{cfg.filename} has no transfer_test')
+    name, root = spec.pop('condition'), spec.pop('data_root')
+    root = data_root or root
+    if not osp.isdir(root):
+        raise FileNotFoundError(
+            f'the transfer test set {name!r} ({cfg.filename}) is the VOC '
+            f'folder {root}, which does not exist; give its folder '
+            '(compare_recipes.py --transfer-root DIR, or --cfg-options '
+            'transfer_test.data_root=DIR)')
+    out = real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
+    out.test_condition = name
+    return out
+
+
+def corrupted_cfg(cfg: Config, corruption: str, severity: int) -> Config:
+    """Copy of ``cfg`` whose test images are corrupted.
+
+    Args:
+        cfg (Config): Test config; its ``test_dataloader.dataset.pipeline``
+            must load images with ``LoadImageFromFile`` (or ours).
+        corruption (str): ``imagecorruptions`` name, e.g. ``'fog'``.
+        severity (int): 1-5; 0 returns an unchanged copy.
+
+    Returns:
+        Config: The copy, ``Corrupt`` right after the loader.
+
+    Raises:
+        ValueError: severity outside 0-5, or no loader in the pipeline.
+    """
+    if severity not in range(6):
+        raise ValueError(f'severity must be 0-5, got {severity!r}')
+    cfg = copy.deepcopy(cfg)
+    if severity == 0:
+        return cfg
+    pipeline = cfg.test_dataloader.dataset.pipeline
+    types = [t.get('type') for t in pipeline]
+    at = next((i for i, t in enumerate(types) if t in LOADER_TYPES), None)
+    if at is None:
+        raise ValueError(
+            f'no image loader ({LOADER_TYPES[0]}) in '
+            f'test_dataloader.dataset.pipeline: {types}')
+    pipeline.insert(
+        at + 1,
+        dict(type='Corrupt', corruption=corruption, severity=severity))
+    return cfg
+
+
+def test_cfg(cfg: Config, checkpoint: str, work_dir: str, name: str,
+             prefix: str = 'test') -> Config:
+    """Copy of ``cfg`` for a test-only runner of ``checkpoint``.
+
+    Nothing of training or validation is left to build, a checkpoint of
+    another model is refused (the checkpoint-fit check of
+    :func:`require_checkpoint_fit`), and a test subset scored against a
+    whole annotation file is an error here, before anything runs.
+
+    Args:
+        cfg (Config): Test config (model, test dataloader and evaluator).
+        checkpoint (str): Checkpoint file.
+        work_dir (str): Runner work folder; the logs go to
+            ``{work_dir}/{name}``.
+        name (str): Name of this run (sub-folder, experiment name).
+        prefix (str): Experiment name prefix, where ``cfg`` has no
+            ``experiment_name``.
+
+    Returns:
+        Config: The copy.
+    """
+    cfg = copy.deepcopy(cfg)
+    check_subset_scoring(cfg)  # a subset scored against every image
+    cfg.load_from = checkpoint
+    require_checkpoint_fit(cfg)  # refuse a checkpoint of another model
+    cfg.work_dir = osp.join(work_dir, name)
+    # unique per run and condition: MMEngine keys its logger and message
+    # hub by this name, and a process may test several checkpoints
+    cfg.experiment_name = f"{cfg.get('experiment_name') or prefix}_{name}"
+    cfg.pop('resume', None)
+    for key in TRAINING_KEYS:
+        cfg.pop(key, None)
+    return cfg
+
+
+def _folder(condition: str) -> str:
+    """A condition's name as a folder name (``real fog`` -> ``real_fog``)."""
+    return re.sub(r'\W+', '_', condition)
+
+
+def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
+                 betas: Sequence[float] = (0.02, ),
+                 transfer_root: Optional[str] = None) -> Dict[str, Config]:
+    """The test configs of the AP drop, by condition, in order.
+
+    Clear val, then foggy val for each beta; a config with
+    ``test_condition = NAME`` (real data) is tested on its own test set
+    only, as condition ``NAME``; a config with ``transfer_test`` is then
+    also tested on that set (last condition).
+
+    Args:
+        cfg (Config): Test config.
+        checkpoint (str): Checkpoint file.
+        work_dir (str): Output folder of the runs.
+        betas (Sequence[float]): Fog densities, 1/m (none for a config with
+            ``test_condition``).
+        transfer_root (str, optional): The folder of the config's
+            ``transfer_test`` set, in place of its ``data_root``.
+
+    Returns:
+        dict: condition -> :func:`test_cfg` of it.
+    """
+    real = test_condition(cfg)
+    if real and betas:
+        raise ValueError(
+            f'{cfg.filename}: test_condition={real!r} tests real data, '
+            'which has no synthetic-fog twin; give no foggy betas '
+            f'(got {list(betas)})')
+    conditions = {real: cfg} if real else {'clear': condition_cfg(cfg)}
+    folders = {real: _folder(real)} if real else {'clear': 'clear'}
+    for beta in betas:
+        conditions[f'foggy beta={beta}'] = condition_cfg(cfg, beta)
+        folders[f'foggy beta={beta}'] = f'foggy_beta_{beta}'
+    if transfer_test(cfg) is not None:
+        other = transfer_cfg(cfg, transfer_root)
+        conditions[other.test_condition] = other
+        folders[other.test_condition] = _folder(other.test_condition)
+    return {condition: test_cfg(c, checkpoint, work_dir, folders[condition],
+                                prefix='ap_drop')
+            for condition, c in conditions.items()}
+
+
+def robustness_cfgs(cfg: Config, checkpoint: str, work_dir: str,
+                    corruptions: Sequence[str],
+                    severities: Sequence[int] = (0, 1, 2, 3, 4, 5),
+                    betas: Sequence[float] = ()) -> dict:
+    """The test configs of the corruption benchmark and the beta sweep.
+
+    The corruptions are applied to the clear images (of a clear or foggy
+    Cityscapes config); the clean images are tested once, for severity 0
+    and for the sweep's clear end.
+
+    Args:
+        cfg (Config): Test config (clear or foggy Cityscapes dataset).
+        checkpoint (str): Checkpoint file.
+        work_dir (str): Folder of the runs' logs.
+        corruptions (Sequence[str]): Corruption names (groups resolved).
+        severities (Sequence[int]): Severities 0-5 (0: clean).
+        betas (Sequence[float]): Foggy Cityscapes betas (1/m) to test too.
+
+    Returns:
+        dict: ``clean`` (the clean images' :func:`test_cfg`, None when no
+        severity 0 and no beta asks for it), ``corrupted`` (``{corruption:
+        {severity: test_cfg}}``, None at severity 0: the clean run) and
+        ``foggy`` (``{beta: test_cfg}``).
+    """
+    clear = condition_cfg(cfg, None)
+
+    def runner_cfg(run_cfg: Config, name: str) -> Config:
+        return test_cfg(run_cfg, checkpoint, work_dir, name,
+                        prefix='robustness')
+
+    corrupted = {
+        c: {s: None if s == 0 else runner_cfg(corrupted_cfg(clear, c, s),
+                                              f'{c}_{s}')
+            for s in severities}
+        for c in corruptions}
+    clean = runner_cfg(clear, 'clean') if betas or any(
+        s == 0 for c in corrupted.values() for s in c) else None
+    foggy = {float(b): runner_cfg(condition_cfg(cfg, b), f'foggy_beta_{b}')
+             for b in betas}
+    return dict(clean=clean, corrupted=corrupted, foggy=foggy)
