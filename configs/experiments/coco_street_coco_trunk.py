@@ -21,3 +21,9 @@ recipes = [
         config='coco_trunk/cbnet-revised_yolox-nano-coco_nasfpn-crpn_'
         '1xb2-ft_coco-street.py'),
 ]
+# on the lent GPU (tools/device/run_all.py) --pretrained must hold the
+# converted YOLOX-Nano (fetch_pretrained.py yolox_nano); without it the dry
+# run writes seeded stand-ins (the photos: the coco_street set's folder)
+device = dict(
+    dry_row='Cascade Mask R-CNN, COCO trunk',
+    tiny_weights='cbnet_tools.synthetic.yolox_checkpoints:tiny_yolox_nano')

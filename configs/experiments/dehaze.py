@@ -26,3 +26,9 @@ recipes = [
         config='../projects/peer_dehaze/configs/'
         'yolox_tiny_dehazer_1xb4-demo_cityscapes-like.py'),
 ]
+# on the lent GPU (tools/device/run_all.py) the dehazer rows read the demo
+# dehazer (carried)
+device = dict(needs=[
+    'work_dirs/dehaze/dehazer_attention_1xb4-600it_cityscapes-like/'
+    'iter_600.pth'
+])

@@ -26,3 +26,5 @@ recipes = [
         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_foggy-cityscapes-'
         'like-to-dawn-fog.py'),
 ]
+# the row the lent GPU script's dry run trains (tools/device/run_all.py)
+device = dict(dry_row='Cascade Mask R-CNN, generated clear')

@@ -80,3 +80,6 @@ trained_as = dict(
         'Cascade Mask R-CNN, clear': 'Cascade Mask R-CNN',
         'CBNet-PT, clear': 'CBNet-PT',
     })
+# the row the lent GPU script's dry run trains (tools/device/run_all.py),
+# tested on a tiny fog folder too
+device = dict(dry_row='Cascade Mask R-CNN, clear')

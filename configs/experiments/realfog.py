@@ -28,3 +28,12 @@ recipes = [
         config='../projects/peer_dehaze/configs/realfog/'
         'yolox_tiny_dehazer_1xb4-demo_voc-fog.py'),
 ]
+# on the lent GPU (tools/device/run_all.py): DAWN at the budget of its H100
+# record; the dehazer rows read the dehazer trained on the generated pairs
+# (carried); the dry run trains YOLOX-Tiny for two seeds at once
+device = dict(
+    preset='realfog_200it',
+    dry_row='YOLOX-Tiny',
+    dry_seeds=[0, 1],
+    needs=['work_dirs/dehaze/dehazer_attention_1xb4-200it_cityscapes-like/'
+           'iter_200.pth'])

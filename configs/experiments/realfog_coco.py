@@ -43,3 +43,9 @@ recipes = [
          config='../projects/peer_dehaze/configs/yolox_coco/'
          'yolox_nano_coco-ft_dcp_1xb4-12e_dawn-fog.py'),
 ]
+# on the lent GPU (tools/device/run_all.py) --pretrained must hold the two
+# files of fetch_pretrained.py yolox_nano; without it the dry run writes
+# seeded stand-ins of both
+device = dict(
+    dry_row='YOLOX-Nano COCO, fine-tuned',
+    tiny_weights='cbnet_tools.synthetic.yolox_checkpoints:tiny_yolox_nano')

@@ -44,3 +44,9 @@ recipes = [
         'dawn-fog.py',
         budget=dict(warmup_iters=200)),
 ]
+# on the lent GPU (tools/device/run_all.py) --pretrained must hold the
+# converted YOLOX-Nano (fetch_pretrained.py yolox_nano); without it the dry
+# run writes seeded stand-ins
+device = dict(
+    dry_row='Cascade R-CNN, COCO trunk',
+    tiny_weights='cbnet_tools.synthetic.yolox_checkpoints:tiny_yolox_nano')

@@ -44,3 +44,7 @@ recipes = [
         config='pretrained/'
         'cbnet-pt-box_mobilenet-v2_fpn-crpn_1xb2-ft_dawn-fog.py'),
 ]
+# on the lent GPU (tools/device/run_all.py) --pretrained must hold the
+# converted trunk (fetch_pretrained.py mobilenet_v2); the dry run trains the
+# row that loads no pretrained file, two seeds at once
+device = dict(dry_row='YOLOX-Tiny (scratch)', dry_seeds=[0, 1])

@@ -23,3 +23,5 @@ recipes = [
         'cbnet-revised-box_mobilenet-v2_nasfpn-crpn_1xb2-ft-trunk-'
         'lr1_dawn-fog.py'),
 ]
+# the row the lent GPU script's dry run trains (tools/device/run_all.py)
+device = dict(dry_row='Cascade R-CNN, trunk lr x1')

@@ -25,3 +25,6 @@ recipes = [
         'cbnet-revised-box_efficientnet-lite0_nasfpn-crpn_1xb2-ft-'
         'trunk-lr1_dawn-fog.py'),
 ]
+# the row the lent GPU script's dry run trains (tools/device/run_all.py;
+# --pretrained must also hold fetch_pretrained.py efficientnet_lite0's file)
+device = dict(dry_row='Cascade R-CNN, EfficientNet-Lite0, trunk lr x1')

@@ -1,7 +1,10 @@
 """tools/device/run_all.py: the one-call GPU script. Its dry run (every
 step on the CPU, tiny budget) end to end, its time boxes, its set-up plan
-and the wheel it brings back."""
+and the wheel it brings back; every set file's plan (the script holds no
+set table of its own)."""
+import ast
 import glob
+import importlib
 import importlib.util
 import json
 import os
@@ -27,6 +30,35 @@ def load_run_all():
 
 
 ra = load_run_all()
+# its steps (run_all.py puts tools/device/ on the path)
+harness = importlib.import_module('device_call.harness')
+plans = importlib.import_module('device_call.plans')
+stack = importlib.import_module('device_call.stack')
+
+
+#: The script's reader of the set files (the project's interpreter).
+READ_FACTS = plans.read_facts
+
+
+@pytest.fixture(autouse=True)
+def plans_in_process(monkeypatch):
+    """The set files read in this process (what the script reads in the
+    project's interpreter, as JSON: the same, checked below), which saves
+    each test an interpreter's start."""
+    monkeypatch.setattr(plans, 'read_facts', lambda python, env, names:
+                        json.loads(json.dumps(plans.set_facts(names))))
+
+
+def with_plan(monkeypatch, name, **changes):
+    """The harness sees set ``name``'s plan with ``changes``."""
+    real = plans.load_plans
+
+    def load(args, env, names):
+        found = real(args, env, names)
+        found[name] = dict(found[name], **changes)
+        return found
+
+    monkeypatch.setattr(harness, 'load_plans', load)
 
 
 def cuda_tests_in_tree():
@@ -182,13 +214,13 @@ def test_a_command_within_its_box_keeps_its_exit_status(tmp_path):
 def test_harness_processes_run_at_once_and_a_failure_shows(tmp_path):
     r = runner(tmp_path)
     start = time.time()
-    res = ra.run_parallel(r, ['sleep', '1'], 4, 30, 'four', None)
+    res = harness.run_parallel(r, ['sleep', '1'], 4, 30, 'four', None)
     assert res['rc'] == 0 and time.time() - start < 3.5  # not 4 s
     assert res['command'].startswith('4 processes at once: sleep 1')
     assert len(list((tmp_path / 'work' / 'logs').glob('four_p*.log'))) == 4
     # one process of several failing fails the call (a plain `wait` is 0)
-    res = ra.run_parallel(r, ['bash', '-c', 'sleep 0.2; exit 4'],
-                          3, 30, 'bad', None)
+    res = harness.run_parallel(r, ['bash', '-c', 'sleep 0.2; exit 4'],
+                               3, 30, 'bad', None)
     assert res['rc'] == 4
 
 
@@ -245,12 +277,12 @@ def test_setup_without_the_stack_or_its_wheels_fails_clearly(tmp_path):
 
 def test_the_built_wheel_comes_back_in_parts_that_join(tmp_path,
                                                        monkeypatch):
-    monkeypatch.setattr(ra, 'PART_BYTES', 1000)
+    monkeypatch.setattr(stack, 'PART_BYTES', 1000)
     r = runner(tmp_path)
     wheel = tmp_path / 'mmcv-2.1.0-cp312-cp312-linux_x86_64.whl'
     data = os.urandom(2500)
     wheel.write_bytes(data)
-    ra.return_wheel(r, str(wheel))
+    stack.return_wheel(r, str(wheel))
     parts = sorted((tmp_path / 'out').glob('mmcv-wheel.part*'))
     assert [p.name for p in parts] == [
         'mmcv-wheel.part00', 'mmcv-wheel.part01', 'mmcv-wheel.part02']
@@ -260,7 +292,7 @@ def test_the_built_wheel_comes_back_in_parts_that_join(tmp_path,
     # too large for the device tool's limits: nothing, and the log says so
     big = tmp_path / 'big.whl'
     big.write_bytes(b'x' * 3001)
-    ra.return_wheel(r, str(big))
+    stack.return_wheel(r, str(big))
     assert len(list((tmp_path / 'out').glob('mmcv-wheel.part*'))) == 3
     assert 'too large' in (tmp_path / 'out' / 'run_all.log').read_text()
 
@@ -284,7 +316,9 @@ def test_a_set_left_too_little_time_is_skipped(tmp_path):
 
 @pytest.mark.parametrize('argv, message', [
     (['--steps', 'setup,bench'], "unknown ['bench']"),
-    (['--sets', 'nope'], "unknown 'nope'"),
+    # an unknown set names the set files
+    (['--sets', 'nope'], "unknown 'nope'; the set files "
+     "(configs/experiments/): ['ablation', 'arch'"),
 ])
 def test_bad_arguments_are_refused(argv, message, capsys):
     with pytest.raises(SystemExit):
@@ -292,17 +326,183 @@ def test_bad_arguments_are_refused(argv, message, capsys):
     assert message in capsys.readouterr().err
 
 
-def test_every_default_set_is_known_and_its_budget_is_the_harness_s():
-    """The sets the script runs by default exist in the harness, and
-    their arguments are ones compare_recipes.py accepts."""
-    from cbnet_lab.recipe_comparison import RECIPE_SETS
+def test_every_set_file_yields_a_device_plan():
+    """Every set file runs on the device (``--sets`` takes it) and in the
+    dry run: its folders are ones the presets file says how to have, its
+    arguments are ones compare_recipes.py accepts, the device budget is
+    its preset's at seeds 0 1 2 (the runs merge with the CPU's records),
+    the dry run trains its one row 2 iterations; the writers and commands
+    it names exist."""
+    from cbnet_lab import recipe_comparison as rc
+    from cbnet_lab.sets import load_device_data, load_sets
     tool = load_tool('analysis_tools/compare_recipes.py')
-    assert 'realfog_pretrained' in ra.DEFAULT_SETS
-    for name in ra.SETS:
-        assert name in RECIPE_SETS
-        for key in ('args', 'dry_args'):
-            args = tool.parse_args(['--set', name] + ra.SETS[name][key])
-            assert args.set == name and args.iters > 0
+    sets, data = load_sets(), load_device_data()
+    assert plans.set_names() == sorted(sets)
+    assert set(ra.DEFAULT_SETS) <= set(sets)
+    assert ra.parse_args(['--sets', *sets]).sets == list(sets)
+    for dry in (False, True):
+        args = ra.parse_args(['--dry-run'] if dry else [])
+        found = plans.load_plans(args, None, list(sets))
+        for name, spec in found.items():
+            device = sets[name].device
+            assert 'error' not in spec, (name, spec)
+            assert spec['data'] in data, name
+            assert spec['weights_from'] == (sets[name].trained_as or
+                                            {}).get('set')
+            got = tool.parse_args(['--set', name] + spec['args'])
+            assert got.preset == device.preset
+            if dry:
+                rows = got.only or [r.name for r in sets[name].recipes]
+                assert got.iters == 2 and got.seeds == device.dry_seeds
+                assert spec['needs'] == []
+            else:
+                preset = rc.PRESETS[device.preset]
+                rows = sets[name].recipes
+                assert got.seeds == [0, 1, 2], name
+                assert (got.iters, got.batch_size, got.warmup_iters,
+                        got.img_scale) == (preset.iters, preset.batch_size,
+                                           preset.warmup_iters,
+                                           preset.img_scale)
+                assert spec['needs'] == device.needs
+            assert spec['runs'] == len(rows) * len(got.seeds)
+            if spec['transfer'] is not None:
+                assert spec['transfer_source'] in data
+            if spec['make']:
+                assert osp.isfile(osp.join(ROOT, spec['make'][0]))
+            for writer in (spec['tiny'], spec.get('transfer_tiny'),
+                           spec['tiny_weights']):
+                if writer is not None:
+                    module, func = writer.split(':')
+                    assert callable(getattr(importlib.import_module(module),
+                                            func)), (name, writer)
+    # the sets on YOLOX-Nano's COCO file write its stand-ins in a dry run
+    for name in ('realfog_coco', 'realfog_coco_trunk',
+                 'coco_street_coco_trunk'):
+        assert found[name]['tiny_weights'] == (
+            'cbnet_tools.synthetic.yolox_checkpoints:tiny_yolox_nano')
+
+
+def test_the_project_interpreter_reads_the_set_files_alike():
+    """The script reads the set files in the project's interpreter (on a
+    fresh machine it has no OpenMMLab stack of its own): what comes back
+    is what this process reads; an interpreter that cannot read them
+    fails every set with why."""
+    names = plans.set_names()
+    assert READ_FACTS(sys.executable, dict(os.environ), names) == \
+        json.loads(json.dumps(plans.set_facts(names)))
+    bad = READ_FACTS('/nonexistent/python', None, ['arch'])
+    assert 'the set files could not be read' in bad['arch']['error']
+
+
+def test_the_script_holds_no_set_table():
+    """A set is defined by its file alone: the script's sources name no
+    set (but the default one), data folder or writer."""
+    from cbnet_lab.sets import load_device_data
+    data = load_device_data()
+    defined = set(plans.set_names()) | set(data) | {
+        f'{n}_val' for n, d in data.items() if d.val_only}
+    sources = [SCRIPT] + sorted(glob.glob(
+        osp.join(ROOT, 'tools', 'device', 'device_call', '*.py')))
+    assert len(sources) > 5
+    steps = {'setup', 'tests', 'speed', 'harness'}  # 'speed' is a set too
+    for path in sources:
+        allowed = steps | (set(ra.DEFAULT_SETS) if path == SCRIPT else set())
+        with open(path) as f:
+            tree = ast.parse(f.read())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value,
+                                                             str):
+                assert node.value not in defined - allowed, (path,
+                                                             node.value)
+                assert 'cbnet_tools.synthetic' not in node.value, path
+            elif isinstance(node, ast.keyword):  # dict(realfog=...)
+                assert node.arg not in defined, (path, node.arg)
+    for gone in ('SETS', 'VAL_ONLY', 'count_runs', 'set_spec'):
+        assert not hasattr(ra, gone) and not hasattr(harness, gone)
+
+
+GOOD_ROW = ("dict(name='stock', config='baselines/"
+            "cascade-mask-rcnn_r18_fpn_1xb2-2k_cityscapes-like.py')")
+TEST_ROW = "dict(name='dcp', config='a.py', weights_of='stock')"
+ZERO_SHOT_ROW = "dict(name='zs', config='b.py', test_only=True)"
+
+
+@pytest.mark.parametrize('device, match', [
+    ('3', 'device must be dict'),
+    ("dict(dry_rows='stock')", r"unknown keys \['dry_rows'\]"),
+    ("dict(preset='moon')", "unknown preset 'moon'"),
+    ("dict(dry_row='nope')", "dry_row 'nope' is no row of the set"),
+    ("dict(dry_row='dcp')", "tests the weights of 'stock'"),
+    ('dict(dry_seeds=[])', 'dry_seeds must be distinct seeds'),
+    ('dict(dry_seeds=[0, 0])', 'dry_seeds must be distinct seeds'),
+    ("dict(dry_seeds=['0'])", 'dry_seeds must be distinct seeds'),
+    ("dict(needs='a.pth')", 'needs must be paths relative'),
+    ("dict(needs=['/abs/a.pth'])", 'needs must be paths relative'),
+    ("dict(tiny_weights='cbnet_tools.synthetic.yolox_checkpoints')",
+     "tiny_weights must be a writer 'module:function'"),
+])
+def test_a_malformed_device_key_is_refused(tmp_path, monkeypatch, device,
+                                           match):
+    """A set file's ``device`` is checked where the set is read: a clear
+    error naming the file and the key; on the device the set fails with
+    it and nothing trains."""
+    from cbnet_lab import sets
+    path = tmp_path / 'my_set.py'
+    path.write_text(f'recipes = [{GOOD_ROW}, {TEST_ROW}]\n'
+                    f'device = {device}\n')
+    with pytest.raises(ValueError, match=match) as err:
+        sets.load_set('my_set', str(path))
+    assert str(path) in str(err.value)
+    monkeypatch.setattr(sets, 'set_files', lambda: {'my_set': str(path)})
+    r = runner(tmp_path, '--dry-run')
+    r.args.sets = ['my_set']
+    rec = harness.step_harness(r, dict(os.environ))
+    (mine, ) = rec['sets']
+    assert mine['status'] == 'failed' and str(path) in mine['note']
+    assert re.search(match, mine['note'])
+    assert not (tmp_path / 'work' / 'harness').exists()
+
+
+def test_a_well_formed_device_key_reads_with_its_defaults(tmp_path):
+    from cbnet_lab import sets
+    path = tmp_path / 'my_set.py'
+    path.write_text(f'recipes = [{ZERO_SHOT_ROW}, {GOOD_ROW}]\n')
+    spec = sets.load_set('my_set', str(path)).device
+    # the first row that trains, seed 0, the set's own preset
+    assert spec == sets.DeviceSpec(preset='demo', dry_row='stock')
+    path.write_text(f'recipes = [{GOOD_ROW}]\ndevice = dict(dry_row=None, '
+                    "preset='bench', dry_seeds=[1, 2], needs=['w/a.pth'],"
+                    " tiny_weights='m.n:f')\n")
+    assert sets.load_set('my_set', str(path)).device == sets.DeviceSpec(
+        preset='bench', dry_row=None, dry_seeds=[1, 2], needs=['w/a.pth'],
+        tiny_weights='m.n:f')
+
+
+@pytest.mark.parametrize('text, match', [
+    ('', 'no device_data'),
+    ("device_data = dict(d=dict(dry_img_scale=(1, 1), makes=['x']))",
+     r"device_data 'd': unknown keys \['makes'\]"),
+    ('device_data = dict(d=dict(dry_img_scale=(1, )))',
+     'dry_img_scale must be'),
+    ("device_data = dict(d=dict(dry_img_scale=(1, 1), make='x.py'))",
+     'make must be'),
+    ("device_data = dict(d=dict(dry_img_scale=(1, 1), tiny='m'))",
+     "tiny must be a writer"),
+    ('device_data = dict(d=dict(dry_img_scale=(1, 1), val_only=(30, 0)))',
+     'val_only must be'),
+    ('device_data = dict(e=dict(dry_img_scale=(1, 1)))',
+     r"preset 'x': its folder 'd' \(data/d\) has no device_data entry"),
+])
+def test_a_malformed_device_data_is_refused(tmp_path, monkeypatch, text,
+                                            match):
+    from cbnet_lab import sets
+    (tmp_path / '_base_').mkdir()
+    (tmp_path / '_base_' / 'presets.py').write_text(
+        "presets = dict(x=dict(data_root='data/d', iters=1, batch_size=1, "
+        f'warmup_iters=0))\n{text}\n')
+    monkeypatch.setattr(sets, 'experiments_dir', lambda: str(tmp_path))
+    with pytest.raises(ValueError, match=match):
+        sets.load_device_data()
 
 
 def test_a_transfer_set_without_its_real_fog_fails_clearly(tmp_path):
@@ -332,7 +532,7 @@ def finished_sets(monkeypatch):
             json.dump(dict(runs=[{}], missing=[]), f)
         return dict(rc=0)
 
-    monkeypatch.setattr(ra, 'run_parallel', fake_parallel)
+    monkeypatch.setattr(harness, 'run_parallel', fake_parallel)
     return seen
 
 
@@ -342,11 +542,10 @@ def test_a_set_made_on_the_machine_is_made_then_tested_on_the_transfer(
     by the set's ``make`` command (here a stand-in writing a folder), the
     carried real fog is passed as --transfer-root."""
     (tmp_path / 'data' / 'dawn_fog_val').mkdir(parents=True)
-    spec = dict(ra.SETS['fog_generated_to_real'], make=[
+    with_plan(monkeypatch, 'fog_generated_to_real', make=[
         '-c', 'import os, sys; os.makedirs(sys.argv[1]); '
         'open(os.path.join(sys.argv[1], "made"), "w").write(sys.argv[2])',
         '{path}', '{nproc}'])
-    monkeypatch.setitem(ra.SETS, 'fog_generated_to_real', spec)
     seen = finished_sets(monkeypatch)
     monkeypatch.setattr(ra.Runner, 'run', lambda self, cmd, *a, **k: dict(
         rc=subprocess.run(cmd).returncode))
@@ -371,7 +570,6 @@ def test_fog_transfer_takes_the_weights_coco_street_trained_before_it(
     for folder in ('coco_street', 'dawn_fog_val'):
         (tmp_path / 'data' / folder).mkdir(parents=True)
     seen = finished_sets(monkeypatch)
-    monkeypatch.setattr(ra, 'count_runs', lambda *a: 1)
     r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
                'coco_street', 'fog_transfer')
     rec = ra.step_harness(r, dict(os.environ))
@@ -390,9 +588,8 @@ def test_fog_transfer_takes_the_weights_coco_street_trained_before_it(
 def test_a_set_whose_data_cannot_be_made_fails_clearly(tmp_path,
                                                        monkeypatch):
     (tmp_path / 'data' / 'dawn_fog_val').mkdir(parents=True)
-    spec = dict(ra.SETS['fog_generated_to_real'],
-                make=['-c', 'raise SystemExit(3)'])
-    monkeypatch.setitem(ra.SETS, 'fog_generated_to_real', spec)
+    with_plan(monkeypatch, 'fog_generated_to_real',
+              make=['-c', 'raise SystemExit(3)'])
     r = runner(tmp_path, '--data', str(tmp_path / 'data'), '--sets',
                'fog_generated_to_real')
     rec = ra.step_harness(r, dict(os.environ))
@@ -477,26 +674,31 @@ def test_dry_run_of_the_generated_to_real_set(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_dry_run_of_the_realfog_coco_set_writes_stand_in_weights(tmp_path):
-    """The COCO YOLOX-Nano set as the dry run runs it without
+@pytest.mark.parametrize('name, row', [
+    ('realfog_coco', 'YOLOX-Nano COCO, fine-tuned'),
+    # the two-stage cascade on YOLOX-Nano's COCO trunk
+    ('realfog_coco_trunk', 'Cascade R-CNN, COCO trunk'),
+])
+def test_dry_run_of_a_coco_yolox_set_writes_stand_in_weights(tmp_path,
+                                                             name, row):
+    """A set on the COCO YOLOX-Nano file as the dry run runs it without
     --pretrained: seeded stand-ins of both converted files in a folder of
-    the call's own, the fine-tuned row for 2 iterations on a tiny fog
+    the call's own, the set's dry row for 2 iterations on a tiny fog
     folder; the caller's cache is not touched."""
     from cbnet_tools import pretrained as pt
     r = runner(tmp_path, '--dry-run', '--data', str(tmp_path / 'none'),
-               '--sets', 'realfog_coco')
+               '--sets', name)
     env = dict(os.environ, OMP_NUM_THREADS='1')
     env[pt.PRETRAINED_DIR_ENV] = str(tmp_path / 'users_cache')
     rec = ra.step_harness(r, env)
     (coco,) = rec['sets']
     assert coco['status'] == 'ok', coco
     assert coco['weights'] == 'stand-ins, generated (dry run)'
-    stand_ins = tmp_path / 'work' / 'pretrained_tiny' / 'realfog_coco'
+    stand_ins = tmp_path / 'work' / 'pretrained_tiny' / name
     assert sorted(p.name for p in stand_ins.iterdir()) == sorted(
         [pt.PRETRAINED_FILES['yolox_nano']] + list(pt.DERIVED_FILES))
     assert not (tmp_path / 'users_cache').exists()
-    with open(tmp_path / 'work' / 'harness' / 'realfog_coco' /
-              'compare.json') as f:
+    with open(tmp_path / 'work' / 'harness' / name / 'compare.json') as f:
         (run,) = json.load(f)['runs']
-    assert run['recipe'] == 'YOLOX-Nano COCO, fine-tuned'
+    assert run['recipe'] == row
     assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0

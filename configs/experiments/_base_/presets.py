@@ -41,4 +41,40 @@ presets = dict(
     # 450 iterations of 4, the batch the YOLOX-Nano configs' lr is set for
     realfog_coco=dict(data_root='data/dawn_fog', iters=450, batch_size=4,
                       warmup_iters=50, img_scale=(640, 480)),
+    # the realfog set (from scratch, demo-size models) on DAWN's fog + haze
+    # at the budget of its H100 record (docs/robustness/
+    # realfog_h100_200it_partial.json): the lent GPU's (its device key)
+    realfog_200it=dict(data_root='data/dawn_fog', iters=200, batch_size=4,
+                       warmup_iters=10),
+)
+# What the lent GPU machine (tools/device/run_all.py) does with each data
+# folder a preset names (its data_root's or transfer_root's last folder,
+# the folder of that name under run_all.py --data, data/device/): `make`,
+# the command (the project interpreter's arguments; {path} and {nproc}
+# filled in) that makes it there instead of carrying it (the generator is
+# deterministic); `tiny`, `module:function(root)` writing tiny data of its
+# kind for a dry run (none: a dry run needs the folder under --data);
+# `dry_img_scale`, the dry run's (w, h); `val_only`, (val_fraction, seed)
+# of its seeded split as the configs set them (configs/realfog/_base_/
+# voc-fog_box.py): as a transfer_root only its val photos are tested, so
+# it travels as `<folder>_val`, every XML and those photos (--prepare
+# copies them), which keeps a call under the device tool's 64 MiB.
+device_data = dict(
+    cityscapes_like=dict(
+        make=['tools/misc/generate_cityscapes_like.py', '{path}',
+              '--preset', 'demo', '--nproc', '{nproc}', '--convert'],
+        tiny='cbnet_tools.synthetic.cityscapes_like:tiny_converted',
+        dry_img_scale=(256, 128)),
+    cityscapes_like_bench=dict(
+        make=['tools/misc/generate_cityscapes_like.py', '{path}',
+              '--preset', 'bench', '--nproc', '{nproc}', '--convert'],
+        tiny='cbnet_tools.synthetic.cityscapes_like:tiny_converted',
+        dry_img_scale=(256, 128)),
+    # DAWN's fog + haze photos in the VOC layout (docs/robustness.md)
+    dawn_fog=dict(tiny='cbnet_tools.synthetic.voc_folder:tiny_fog_folder',
+                  dry_img_scale=(160, 96), val_only=(0.3, 0)),
+    # the converted split with the photos copied (a link would travel as a
+    # link): tools/dataset_converters/coco_street.py SRC
+    # data/device/coco_street --copy
+    coco_street=dict(dry_img_scale=(256, 128)),
 )
