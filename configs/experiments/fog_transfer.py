@@ -81,5 +81,9 @@ trained_as = dict(
         'CBNet-PT, clear': 'CBNet-PT',
     })
 # the row the lent GPU script's dry run trains (tools/device/run_all.py),
-# tested on a tiny fog folder too
-device = dict(dry_row='Cascade Mask R-CNN, clear')
+# tested on a tiny fog folder too; the learned dehazer's rows read its
+# checkpoint, carried with the call
+device = dict(
+    dry_row='Cascade Mask R-CNN, clear',
+    needs=['work_dirs/dehaze/dehazer_attention_1xb4-200it_cityscapes-like/'
+           'iter_200.pth'])
