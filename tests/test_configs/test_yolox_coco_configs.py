@@ -54,7 +54,12 @@ def test_builds_without_weights_on_the_shared_split(name, tmp_path,
     pre = cfg.model.data_preprocessor
     assert pre.pad_value == 114 and pre.get('batch_augments') is None
     assert pre.type == ('CBNetDehazeDataPreprocessor'
-                        if name.startswith('DCP') else 'DetDataPreprocessor')
+                        if name.startswith(('DCP', 'dehazer'))
+                        else 'DetDataPreprocessor')
+    if name.startswith('dehazer'):  # the learned dehazer, frozen
+        assert pre.dehaze.type == 'CBNetAttentionDehazer'
+        assert pre.dehaze_checkpoint.endswith('iter_200.pth')
+        assert not pre.train_dehazer
     if zero_shot:
         assert cfg.train_dataloader is None and cfg.train_cfg is None
         assert cfg.optim_wrapper is None and hook_types(cfg) == []

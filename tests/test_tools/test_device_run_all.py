@@ -622,8 +622,13 @@ def test_prepare_carries_each_sets_folders_once(tmp_path, capsys):
     out = capsys.readouterr().out
     call = json.loads(out[out.index('{'):])
     carried = [osp.normpath(osp.join(ROOT, p)) for p in call['carry']]
+    # and the learned dehazer's checkpoint the transfer set's dehazer rows
+    # read (its device key's needs)
+    dehazer = osp.join(ROOT, 'work_dirs', 'dehaze',
+                       'dehazer_attention_1xb4-200it_cityscapes-like',
+                       'iter_200.pth')
     assert carried == [str(wheels), str(data / 'coco_street'),
-                       str(data / 'dawn_fog_val')]
+                       str(data / 'dawn_fog_val'), dehazer]
     assert (data / 'coco_street' / 'x.txt').read_text() == 'coco'
     assert not (data / 'cityscapes_like_bench').exists()
     assert '--sets fog_transfer fog_generated_to_real' in call['command']
