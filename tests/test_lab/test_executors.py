@@ -15,7 +15,7 @@ import time
 
 import pytest
 import torch
-from test_recipe_comparison import fake_run, fake_training
+from harness_helpers import fake_run, fake_training
 from tool_helpers import TEST_IN_PROCESS, load_tool, tool_file
 
 from cbnet_lab import config_edits as ce

@@ -6,14 +6,13 @@ from dataclasses import asdict
 
 import numpy as np
 import pytest
+from harness_helpers import fake_run, fake_training, stub_comparison
 from tool_helpers import load_tool
 
 from cbnet_lab import config_edits as ce
-from cbnet_lab import executors, plan
+from cbnet_lab import executors
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report
-from cbnet_lab import run as lab_run
-from cbnet_lab import summary
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -68,12 +67,6 @@ def test_a_variant_without_its_source_weights_is_a_clear_error(tmp_path):
     with pytest.raises(FileNotFoundError, match="weights of 'CRPN', seed 3"):
         rc.run_recipe('k100', config, 3, ce.Budget(iters=5), str(tmp_path),
                       [0.02], str(tmp_path), weights_of='CRPN')
-
-
-def fake_run(recipe, seed, clear, foggy, key='coco/segm_mAP'):
-    return dict(recipe=recipe, seed=seed, train_time_s=10.0 + seed,
-                metrics={'clear': {key: clear},
-                         'foggy beta=0.02': {key: foggy}})
 
 
 def test_summarize_mean_std_and_drop_against_numpy():
@@ -273,28 +266,6 @@ def test_report_only_tabulates_a_record_and_lists_what_is_left_out(
     with pytest.raises(ValueError, match='nothing to tabulate'):
         rc.compare([('z', 'z.py')], [0], budget, 'none', [0.02], out,
                    log=logs.append, train=False)
-
-
-def stub_comparison(monkeypatch, run_recipe):
-    """compare() with ``run_recipe`` in place of each run, no weights
-    sources, clear val as reference, no pretrained files, no second test
-    set and no plot."""
-    monkeypatch.setattr(lab_run, 'run_recipe', run_recipe)
-    monkeypatch.setattr(plan, 'weights_sources',
-                        lambda recipes, rows=None: {n: None
-                                                    for n, _ in recipes})
-    monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
-    monkeypatch.setattr(plan, 'check_pretrained', lambda *a: None)
-    monkeypatch.setattr(plan, 'check_transfer', lambda *a: None)
-    monkeypatch.setattr(summary, 'plot', lambda *a, **k: None)
-
-
-def fake_training(tmp_path, monkeypatch, run_recipe):
-    """:func:`stub_comparison` and a val file under ``tmp_path / 'data'``."""
-    stub_comparison(monkeypatch, run_recipe)
-    ann = tmp_path / 'data' / 'annotations'
-    ann.mkdir(parents=True)
-    (ann / 'instancesonly_filtered_gtFine_val.json').write_text('{}')
 
 
 def test_the_record_names_the_gpu_the_runs_trained_on(tmp_path,
