@@ -27,7 +27,8 @@ from cbnet_lab.doc_tables import REGION
 
 #: The pages that state results and hold current answers only.
 CURRENT_PAGES = ('README.md', 'docs/results.md', 'docs/accuracy.md',
-                 'docs/benchmarks.md', 'docs/design_readings.md',
+                 'docs/benchmarks.md', 'docs/robustness.md',
+                 'docs/design_readings.md',
                  'configs/cbnet/README.md', 'configs/demo/README.md',
                  'configs/pretrained/README.md',
                  'configs/baselines/README.md')
