@@ -525,6 +525,7 @@ KINDS: Dict[str, Callable] = {
     'load-test': serving_tables.load_test,
     'fallback': serving_tables.fallback,
     'offload': serving_tables.offload,
+    'offload-seeds': serving_tables.offload_seeds,
 }
 #: The kinds that read several records (the rest read one).
 MULTI_RECORD = frozenset({'model-index', 'load-test'})

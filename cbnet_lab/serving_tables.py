@@ -146,3 +146,25 @@ def offload(record: dict) -> str:
         [f'{side} {h}' for side in ('local', 'server')
          for _, h in keys[::2]], alone)
     return '\n'.join(lines)
+
+
+def offload_seeds(record: dict) -> str:
+    """An ``offload_seeds.py`` table (``offload_seeds.json``: its rows
+    over the seeds of the edge model, calibrated or not), in short: per
+    row the share offloaded, the pooled box AP, the box AP on each
+    condition's frames and the gain over random offloading at that rate,
+    each mean +- std over the seeds."""
+
+    def stat(s, scale=1.0, digits=1):
+        mean, std = s['mean'] * scale, s['std'] * scale
+        return f'{mean:.{digits}f} +- {std:.{digits}f}'
+
+    conds = record['conditions']
+    rows = [[r['row'], stat(r['offload_rate'], 100, 0) + ' %',
+             stat(r['bbox_mAP'])] +
+            [stat(r['condition_ap'][c]) for c in conds] +
+            [stat(r['gain_over_random']) if 'gain_over_random' in r else '-']
+            for r in record['rows']]
+    return '\n'.join(markdown_table(
+        ['row', 'offloaded', 'box AP'] + [f'box AP {c}' for c in conds] +
+        ['gain over random'], rows))

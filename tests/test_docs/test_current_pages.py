@@ -31,7 +31,8 @@ CURRENT_PAGES = ('README.md', 'docs/results.md', 'docs/accuracy.md',
                  'docs/design_readings.md',
                  'configs/cbnet/README.md', 'configs/demo/README.md',
                  'configs/pretrained/README.md',
-                 'configs/baselines/README.md')
+                 'configs/baselines/README.md',
+                 'projects/edge_serving/README.md')
 JOURNAL = sorted(glob.glob(osp.join(ROOT, 'docs', 'journal', '*.md')))
 #: The dated narrative that belongs to the journal.
 NARRATIVE = {

@@ -349,3 +349,21 @@ def test_the_command_line_on_the_committed_serving_records_and_summary(
     summary = tool.main(['results-summary', 'docs/results_summary.yml'])
     assert len(rows(summary)) >= 8
     assert all('[record](docs/' in r[-1] for r in rows(summary))
+
+
+def test_offload_seeds_in_short():
+    def stat(mean, std):
+        return dict(mean=mean, std=std)
+
+    record = dict(conditions=['clear', 'fog'], rows=[
+        dict(row='always local', offload_rate=stat(0.0, 0.0),
+             bbox_mAP=stat(15.0, 2.0),
+             condition_ap=dict(clear=stat(10.0, 1.0), fog=stat(20.0, 3.0))),
+        dict(row='haze, decile 0.5', offload_rate=stat(0.5, 0.01),
+             bbox_mAP=stat(19.0, 1.5), gain_over_random=stat(-3.9, 1.0),
+             condition_ap=dict(clear=stat(11.0, 2.0), fog=stat(27.0, 2.0)))])
+    assert rows(rt.serving_tables.offload_seeds(record)) == [
+        ['always local', '0 +- 0 %', '15.0 +- 2.0', '10.0 +- 1.0',
+         '20.0 +- 3.0', '-'],
+        ['haze, decile 0.5', '50 +- 1 %', '19.0 +- 1.5', '11.0 +- 2.0',
+         '27.0 +- 2.0', '-3.9 +- 1.0']]

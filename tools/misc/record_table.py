@@ -27,7 +27,8 @@ Kinds (cbnet_lab/record_tables.py): ``like-for-like`` (``--table ratios``,
 ``proposals-seeds`` (runs named ``NAME sN`` as mean +- std over seeds),
 ``model-index`` (``--datasets``, ``--metrics``), the serving records'
 ``edge-speed`` (``--reference``), ``load-test`` (several records,
-``--names``), ``fallback`` and ``offload`` (cbnet_lab/serving_tables.py),
+``--names``), ``fallback``, ``offload`` and ``offload-seeds`` (an
+``offload_seeds.json``, in short; cbnet_lab/serving_tables.py),
 and ``results-summary`` (the README's results table from its spec,
 cbnet_lab/results_summary.py). ``--key a.b`` takes the part of a JSON
 record at that dotted key. The table is printed and, with ``--out-dir``,
