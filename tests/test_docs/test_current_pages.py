@@ -32,7 +32,9 @@ CURRENT_PAGES = ('README.md', 'docs/results.md', 'docs/accuracy.md',
                  'configs/cbnet/README.md', 'configs/demo/README.md',
                  'configs/pretrained/README.md',
                  'configs/baselines/README.md',
-                 'projects/edge_serving/README.md')
+                 'configs/realfog/README.md',
+                 'projects/edge_serving/README.md',
+                 'projects/peer_dehaze/README.md')
 JOURNAL = sorted(glob.glob(osp.join(ROOT, 'docs', 'journal', '*.md')))
 #: The dated narrative that belongs to the journal.
 NARRATIVE = {
