@@ -3,8 +3,11 @@ harness does not write: the speed, memory and FLOPs records of
 ``benchmark.py`` and of the lent devices (``docs/benchmarks/*.json``),
 the kernel and backbone timings (``benchmark_kernels.py``,
 ``benchmark_backbone.py``), the proposal statistics of
-``proposal_quality.py`` (``docs/accuracy/*.json``) and the model index
-(``configs/**/metafile.yml``).
+``proposal_quality.py`` (``docs/accuracy/*.json``), the model index
+(``configs/**/metafile.yml``), the serving records
+(``docs/serving/``: :mod:`cbnet_lab.serving_tables`) and the README's
+results table (a spec over the comparison records:
+:mod:`cbnet_lab.results_summary`).
 
 ``tools/misc/record_table.py KIND RECORD ...`` prints one of them; the
 docs' generated regions name that command (:mod:`cbnet_lab.doc_tables`),
@@ -17,6 +20,9 @@ import statistics
 from typing import Callable, Dict, List, Optional, Sequence
 
 from cbnet_tools.markdown import markdown_table
+
+from . import serving_tables
+from .results_summary import results_summary
 
 #: Readable names of the models and positional encodings of the records.
 LABELS = {
@@ -86,6 +92,25 @@ def _lfl_cell(times: dict, size: str, threads: str, model: str,
             return (statistics.median(cell[name]),
                     statistics.median(cell[swin]))
     return None
+
+
+def like_for_like_ratio(record: dict, model: str, size: str, threads: str,
+                        proposals: int) -> float:
+    """The median inference time of ``model`` (``b2``, ``b5``; ``swin-s``
+    is 1 by definition) over Swin-S's at equal ``proposals``, input
+    height ``size`` and ``threads``, from the one process that timed both.
+
+    Raises:
+        KeyError: the record has no such cell.
+    """
+    times = record['inference_round_times_s']
+    cell = _lfl_cell(times, size, threads,
+                     'b5' if model == 'swin-s' else model, proposals)
+    if cell is None:
+        raise KeyError(f'the like-for-like record has no cell for {model} '
+                       f'at {_size(size)}, {threads} threads, {proposals} '
+                       'proposals')
+    return cell[1] / cell[1] if model == 'swin-s' else cell[0] / cell[1]
 
 
 def _lfl_rows(times: dict) -> List[tuple]:
@@ -391,6 +416,57 @@ def proposals(record: dict) -> str:
          for name, r in results.items()]))
 
 
+def proposals_seeds(record: dict) -> str:
+    """:func:`proposals` over seeds: the runs named ``NAME sN`` (one per
+    seed, as ``proposal_quality.py --names`` gives them) grouped by
+    ``NAME``, each figure in percent as mean +- std (sample std) over the
+    seeds."""
+    groups: Dict[str, List[dict]] = {}
+    for name, result in record['results'].items():
+        stem, _, seed = name.rpartition(' s')
+        groups.setdefault(stem if stem and seed.isdigit() else name,
+                          []).append(result)
+    first = next(iter(record['results'].values()))
+    recall = list(first['recall'])
+    share = list(first['positive_share'])
+
+    def cell(values):
+        mean = statistics.mean(values)
+        std = statistics.stdev(values) if len(values) > 1 else 0.0
+        return f'{100 * mean:.1f} +- {100 * std:.1f}'
+
+    return '\n'.join(markdown_table(
+        ['model (%)', 'seeds'] + [f'recall@{t}' for t in recall] +
+        ['mean best IoU'] + [f'proposals IoU>={t}' for t in share],
+        [[name, len(runs)] +
+         [cell([r['recall'][t] for r in runs]) for t in recall] +
+         [cell([r['mean_best_iou'] for r in runs])] +
+         [cell([r['positive_share'][t] for r in runs]) for t in share]
+         for name, runs in groups.items()]))
+
+
+# -- benchmark.py's inference table (benchmark.json) --------------------------
+
+
+def benchmark(record: dict) -> str:
+    """The inference table of a ``benchmark.py`` record (``benchmark.json``:
+    ``meta``, ``results``, ``scaling``), as ``benchmark.md`` gives it: its
+    tables only, without the run's notes (command, clock, load)."""
+    from .model_benchmark import markdown
+    md = markdown(record['meta'], record['results'],
+                  record.get('scaling', {}))
+    blocks, block = [], []
+    for line in md.splitlines():
+        if line.startswith('|'):
+            block.append(line)
+        elif block:
+            blocks.append(block)
+            block = []
+    if block:
+        blocks.append(block)
+    return '\n\n'.join('\n'.join(b) for b in blocks)
+
+
 # -- the model index (metafile.yml) ------------------------------------------
 
 
@@ -441,5 +517,15 @@ KINDS: Dict[str, Callable] = {
     'backbone': backbone,
     'backbone-threads': backbone_threads,
     'proposals': proposals,
+    'proposals-seeds': proposals_seeds,
+    'benchmark': benchmark,
     'model-index': model_index,
+    'results-summary': results_summary,
+    'edge-speed': serving_tables.edge_speed,
+    'load-test': serving_tables.load_test,
+    'fallback': serving_tables.fallback,
+    'offload': serving_tables.offload,
+    'offload-seeds': serving_tables.offload_seeds,
 }
+#: The kinds that read several records (the rest read one).
+MULTI_RECORD = frozenset({'model-index', 'load-test'})

@@ -1,5 +1,6 @@
 """Print a Markdown table from a committed speed, kernel, backbone,
-proposal or model-index record (what compare_recipes.py does not tabulate).
+proposal, serving or model-index record, or the README's results summary
+(what compare_recipes.py does not tabulate).
 
 Usage::
 
@@ -13,14 +14,26 @@ Usage::
         docs/benchmarks/device_h200_chunk_threads.json --key gpu
     python tools/misc/record_table.py model-index \
         configs/cbnet/metafile.yml configs/baselines/metafile.yml
+    python tools/misc/record_table.py load-test \
+        docs/serving/realfog/load/pass2_r1_b1.json \
+        docs/serving/realfog/load/pass2_r2_b1.json --names "1, 1" "2, 1"
+    python tools/misc/record_table.py results-summary \
+        docs/results_summary.yml
 
 Kinds (cbnet_lab/record_tables.py): ``like-for-like`` (``--table ratios``,
 ``latency``, ``gpu``, ``training`` or ``gflops``), ``scaling``,
 ``kernels``, ``kernel-threads``, ``backbone``, ``backbone-threads``,
-``proposals``, ``model-index`` (``--datasets``, ``--metrics``). ``--key
-a.b`` takes the part of a JSON record at that dotted key. The table is
-printed and, with ``--out-dir``, written there as ``record_table.md``
-(what the docs' generated regions read: tools/misc/update_doc_tables.py).
+``benchmark`` (``benchmark.py``'s inference table), ``proposals``,
+``proposals-seeds`` (runs named ``NAME sN`` as mean +- std over seeds),
+``model-index`` (``--datasets``, ``--metrics``), the serving records'
+``edge-speed`` (``--reference``), ``load-test`` (several records,
+``--names``), ``fallback``, ``offload`` and ``offload-seeds`` (an
+``offload_seeds.json``, in short; cbnet_lab/serving_tables.py),
+and ``results-summary`` (the README's results table from its spec,
+cbnet_lab/results_summary.py). ``--key a.b`` takes the part of a JSON
+record at that dotted key. The table is printed and, with ``--out-dir``,
+written there as ``record_table.md`` (what the docs' generated regions
+read: tools/misc/update_doc_tables.py).
 """
 import argparse
 import os
@@ -43,8 +56,12 @@ def parse_args(argv=None):
                         help='like-for-like: ratios, latency, gpu, '
                         'training or gflops')
     parser.add_argument('--reference',
-                        help='scaling: the model of the ratio column '
-                        '(default: the record\'s Swin-S)')
+                        help='scaling, edge-speed: the model of the ratio '
+                        'column (default: the record\'s Swin-S; '
+                        'edge-speed: the recorded command\'s)')
+    parser.add_argument('--names', nargs='+',
+                        help='load-test: a name per record (default: 0, '
+                        '1, ...)')
     parser.add_argument('--datasets', nargs='+', default=[],
                         help='model-index: keep the results whose dataset '
                         'contains one of these')
@@ -54,8 +71,12 @@ def parse_args(argv=None):
                         help='also write the table there as '
                         'record_table.md')
     args = parser.parse_args(argv)
-    if args.kind != 'model-index' and len(args.records) > 1:
+    from cbnet_lab.record_tables import MULTI_RECORD
+    if args.kind not in MULTI_RECORD and len(args.records) > 1:
         parser.error(f'{args.kind} reads one record')
+    if args.names and len(args.names) != len(args.records):
+        parser.error(f'--names gives {len(args.names)} names for '
+                     f'{len(args.records)} records')
     return args
 
 
@@ -65,11 +86,17 @@ def table(args) -> str:
     if args.kind == 'model-index':
         return rt.model_index([rt.load(p) for p in args.records],
                               args.datasets, args.metrics)
+    if args.kind == 'load-test':
+        return rt.KINDS['load-test'](
+            [rt.part(rt.load(p), args.key) for p in args.records],
+            args.names)
     record = rt.part(rt.load(args.records[0]), args.key)
     if args.kind == 'like-for-like':
         return rt.like_for_like(record, args.table)
-    if args.kind == 'scaling':
-        return rt.scaling(record, args.reference)
+    if args.kind in ('scaling', 'edge-speed'):
+        return rt.KINDS[args.kind](record, args.reference)
+    if args.kind == 'results-summary':  # its records' paths: from here
+        return rt.results_summary(record, os.getcwd())
     return rt.KINDS[args.kind](record)
 
 
