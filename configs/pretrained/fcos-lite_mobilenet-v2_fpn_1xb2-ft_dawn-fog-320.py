@@ -1,5 +1,5 @@
-# The edge model (projects/edge_serving/README.md "The edge
-# model"): the light FCOS on the pretrained MobileNetV2 at half the
+# The earlier edge model (projects/edge_serving/README.md "The earlier
+# edge model: FCOS-lite"): the light FCOS on the pretrained MobileNetV2 at half the
 # recipes' size, photos and frames resized to fit 320x240 (a 640x360
 # camera frame is read at 320x180), which is what brings one CPU thread
 # near 15 frames/s; the 640 px config it is based on measures what the

@@ -59,7 +59,7 @@ Usage::
         --scale-sizes 256x512 512x1024 1024x2048
     python tools/analysis_tools/benchmark.py --device cuda --amp ...
     # the edge model against the servers, 640x360 frames, one thread
-    # (projects/edge_serving/README.md "The edge model")
+    # (projects/edge_serving/README.md "The earlier edge model: FCOS-lite")
     OMP_NUM_THREADS=1 python tools/analysis_tools/benchmark.py --suite edge \\
         --image data/dawn_fog/JPEGImages/foggy-001.jpg \\
         --out-dir docs/serving/edge_benchmark
@@ -109,10 +109,10 @@ MODELS = {
 #: ``--suite``: a named measurement, its settings as defaults (any option
 #: given on the command line still wins).
 SUITES = {
-    # projects/edge_serving/README.md "The edge model": the edge
-    # model next to the server models like for like, as the edge device
-    # runs them: one torch thread, 640x360 camera frames each resized by
-    # its config's test pipeline (the edge model reads 320x180, the
+    # projects/edge_serving/README.md "The earlier edge model: FCOS-lite":
+    # the edge model next to the server models like for like, as the edge
+    # device runs them: one torch thread, 640x360 camera frames each
+    # resized by its config's test pipeline (the edge model reads 320x180, the
     # servers 640x360), batch 1, inference only; the light head at 640 px
     # shows what the input size alone buys
     'edge': dict(

@@ -1,5 +1,5 @@
 """Frames/s of edge models on one frame as the router runs them, like for
-like (projects/edge_serving/README.md, "The edge model").
+like (projects/edge_serving/README.md, "The exported edge model").
 
 Usage::
 
