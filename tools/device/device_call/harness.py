@@ -95,11 +95,14 @@ def step_harness(r: Runner, env) -> dict:
             rec['transfer'] = how
         missing = [p for p in spec['needs']
                    if not osp.exists(osp.join(ROOT, p))]
-        if data is None or (spec.get('transfer') and transfer is None) \
-                or missing:
+        unready = data is None or bool(spec.get('transfer')) and \
+            transfer is None  # ``how`` says why
+        if unready or missing:
             rec['status'] = 'failed'
-            rec['note'] = how if not missing else \
-                f'missing (carry them): {missing}'
+            notes = [how] if unready else []
+            if missing:
+                notes.append(f'missing (carry them): {missing}')
+            rec['note'] = '; '.join(notes)
             continue
         set_args = list(spec['args'])
         work = osp.join(r.work, 'harness', name)
