@@ -89,7 +89,8 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
               out_dir: str, cfg_options: Optional[dict] = None,
               set_name: Optional[str] = None,
               transfer_root: Optional[str] = None,
-              weights_from: Optional[str] = None) -> List[Job]:
+              weights_from: Optional[str] = None,
+              weights_of: Optional[Dict[str, str]] = None) -> List[Job]:
     """Every run of a comparison, seed-major (a comparison cut short still
     has every recipe at the seeds it finished).
 
@@ -108,6 +109,9 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         weights_from (str, optional): The work dir of the set some rows
             train as (:func:`trained_as`): each seed finished there is
             tested, not trained (:func:`cbnet_lab.run_files.find_trained`).
+        weights_of (dict, optional): Test-time variants among the recipes
+            without a set row: name -> the recipe whose weights it tests
+            (:func:`weights_sources`).
 
     Returns:
         list[Job]: The runs, in order.
@@ -119,7 +123,7 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget or overrides.
     """
     rows = set_rows(set_name, recipes)
-    sources = weights_sources(recipes, rows)
+    sources = weights_sources(recipes, rows, weights_of)
     budgets = {n: row_budget(budget, rows.get(n)) for n, _ in recipes}
     elsewhere = trained_as(set_name, recipes) if weights_from else {}
     if elsewhere:
@@ -152,54 +156,46 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
 
 def weights_sources(
         recipes: Sequence[Tuple[str, str]],
-        rows: Optional[Dict[str, Recipe]] = None
+        rows: Optional[Dict[str, Recipe]] = None,
+        weights_of: Optional[Dict[str, str]] = None
 ) -> Dict[str, Optional[str]]:
     """Which recipe's weights each recipe tests (None: its own, trained).
 
-    A set file's row with ``weights_of = NAME`` names an earlier row; a
-    config with ``compare_weights_of = PATH`` names the config of an
-    earlier recipe of ``recipes``; ``PATH`` is relative to the config's
-    folder (or absolute).
+    A set file's row with ``weights_of = NAME``, or a recipe that
+    ``weights_of`` names (``compare_recipes.py --weights-of``: a
+    ``--configs`` recipe has no row), tests the weights that the earlier
+    recipe ``NAME`` trains.
 
     Args:
         recipes (Sequence[tuple[str, str]]): (name, config path), in order.
         rows (dict, optional): Recipe name -> its set file row
             (:func:`cbnet_lab.sets.set_rows`).
+        weights_of (dict, optional): Recipe name -> the recipe whose
+            weights it tests, over its row's.
 
     Returns:
         dict: recipe name -> name of the recipe whose weights it tests.
 
     Raises:
-        ValueError: ``PATH`` is not the config of an earlier recipe, or that
-            recipe is itself a test-time variant.
+        ValueError: ``weights_of`` names no recipe, or a recipe's source is
+            not an earlier recipe of the comparison that trains.
     """
-    sources, seen = {}, {}
-    rows = rows or {}
-    for name, config in recipes:
-        target = read_config(config).get('compare_weights_of')
+    rows, given = rows or {}, dict(weights_of or {})
+    names = [name for name, _ in recipes]
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise ValueError(f'weights_of: no recipe named {unknown}; the '
+                         f'recipes are {names}')
+    sources = {}
+    for name in names:
         row = rows.get(name)
-        if row is not None and row.weights_of is not None:
-            if sources.get(row.weights_of, 'missing') is not None:
-                raise ValueError(
-                    f'recipe {name!r} tests the weights of '
-                    f'{row.weights_of!r}, which is not an earlier recipe of '
-                    'this comparison that trains (give it too, before '
-                    f'{name!r})')
-            sources[name] = row.weights_of
-        elif target is None:
-            sources[name] = None
-        else:
-            path = osp.realpath(
-                osp.join(osp.dirname(osp.abspath(config)), target))
-            source = seen.get(path)
-            if source is None or sources[source] is not None:
-                raise ValueError(
-                    f'recipe {name!r} tests the weights of {path} '
-                    '(compare_weights_of), but no earlier recipe of the '
-                    'comparison trains that config: list it before '
-                    f'{name!r}')
-            sources[name] = source
-        seen.setdefault(osp.realpath(config), name)
+        source = given.get(name, None if row is None else row.weights_of)
+        if source is not None and sources.get(source, 'missing') is not None:
+            raise ValueError(
+                f'recipe {name!r} tests the weights of {source!r}, which is '
+                'not an earlier recipe of this comparison that trains (give '
+                f'it too, before {name!r})')
+        sources[name] = source
     return sources
 
 
@@ -218,9 +214,9 @@ def trained_as(set_name: Optional[str],
 
     Raises:
         ValueError: The set has no such rows, or a row's config differs
-            from the other row's in more than its ``transfer_*`` /
-            ``compare_*`` keys: training one would not be training the
-            other.
+            from the other row's in more than its ``transfer_*`` keys (the
+            variables of the fog-transfer base): training one would not be
+            training the other.
     """
     spec = SET_TRAINED_AS.get(set_name)
     if spec is None:
@@ -231,7 +227,7 @@ def trained_as(set_name: Optional[str],
 
     def training_keys(config: str) -> dict:
         return {k: v for k, v in read_config(config).to_dict().items()
-                if not k.startswith(('transfer_', 'compare_'))}
+                if not k.startswith('transfer_')}
 
     theirs = dict(resolve_recipes(spec['set']))
     found = {}
@@ -246,7 +242,7 @@ def trained_as(set_name: Optional[str],
             raise ValueError(
                 f'recipe {name!r} should train as the {spec["set"]} set\'s '
                 f'{other!r}, but their configs differ in {differ} (only '
-                'transfer_* and compare_* keys may)')
+                'transfer_* keys may)')
         found[name] = other
     return found
 

@@ -20,12 +20,12 @@ through :func:`cbnet_lab.ap_drop.ap_drop`. Each run writes its
 from its last checkpoint (resumable). The results are summarised as
 mean +- std over seeds per recipe and condition.
 
-Test-time variants. A config that sets ``compare_weights_of = PATH`` (a
-config file, relative to the variant's own folder like ``_base_``) is not
-trained: each seed tests the weights that the recipe with config ``PATH``
-trained for that seed, in the same comparison (listed before it), under
-the variant's own test settings (``model.test_cfg``, test pipeline). That
-compares, say, test-time proposal counts on the very same weights.
+Test-time variants. A set file's row with ``weights_of = NAME`` (or a
+``--configs`` recipe named in ``weights_of``) is not trained: each seed
+tests the weights that recipe ``NAME`` trained for that seed, in the same
+comparison (listed before it), under the variant's own test settings
+(``model.test_cfg``, test pipeline). That compares, say, test-time
+proposal counts on the very same weights.
 
 Transfer. A config that also sets ``transfer_test`` (the
 ``fog_transfer`` set: trained on clear COCO street photos) is tested on
@@ -39,8 +39,8 @@ naming the file.
 Runs trained by another set. Some rows of a set train exactly what a
 row of another set trains (:data:`SET_TRAINED_AS`: the fog_transfer set's
 clear-only rows are the coco_street set's rows with a second test set;
-checked: the two configs must be equal but for their ``transfer_*`` and
-``compare_*`` keys). Given ``weights_from`` (the other set's work dir:
+checked: the two configs must be equal but for their ``transfer_*``
+keys). Given ``weights_from`` (the other set's work dir:
 same budget, overrides and data), each seed's finished run there is
 tested here instead of trained again: its checkpoint is linked into this
 run's folder, and the run records its train time and where it was
@@ -97,7 +97,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             transfer_root: Optional[str] = None,
             ceiling_record: Optional[str] = None,
             weights_from: Optional[str] = None,
-            executor: Optional[Executor] = None) -> dict:
+            executor: Optional[Executor] = None,
+            weights_of: Optional[dict] = None) -> dict:
     """Run every recipe with every seed, then summarise, tabulate, plot.
 
     Writes ``compare.json`` (runs, summary, budget, machine, date),
@@ -135,6 +136,10 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         executor (optional): Where the runs run
             (:func:`cbnet_lab.executors.make_executor`); default one after
             another in this process.
+        weights_of (dict, optional): Test-time variants among recipes
+            without a set row (``--configs``): name -> the earlier recipe
+            whose weights it tests, seed by seed (a set's rows say it with
+            their ``weights_of``).
 
     Returns:
         dict: What ``compare.json`` holds.
@@ -144,7 +149,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     # a tabulation (train=False) reads the runs here only
     jobs = plan_jobs(recipes, seeds, budget, data_root, betas, out_dir,
                      cfg_options, set_name, transfer_root,
-                     weights_from if train else None)
+                     weights_from if train else None, weights_of)
     if train:  # a tabulation reads no data
         check_inputs(recipes, jobs, reference, data_root, betas,
                      transfer_root)

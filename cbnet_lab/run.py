@@ -163,9 +163,9 @@ def with_front_end(cfg, checkpoint: str, run_dir: str) -> Tuple[str, int]:
     """The weights a test-only row tests: ``checkpoint``, or a copy of it
     with the weights of a front end that the row puts in front of it.
 
-    A test-only row (``compare_weights_of``) may put a part with weights
-    in front of another row's detector: a learned dehazer in its data
-    preprocessor, whose own ``init_weights`` loads it from its own file
+    A test-only row (``weights_of``) may put a part with weights in front
+    of another row's detector: a learned dehazer in its data preprocessor,
+    whose own ``init_weights`` loads it from its own file
     (``dehaze_checkpoint``). The detector's checkpoint has none of those
     tensors, and ``Runner.test`` does not initialise the model: tested as
     it is, the checkpoint-fit check refuses it (rightly: the front end

@@ -28,12 +28,14 @@ recipes = [
         name='DCP + Cascade Mask R-CNN, clear (test only)',
         config='../projects/peer_dehaze/configs/pretrained/fog_transfer/'
         'cascade-mask-rcnn_mobilenet-v2_fpn_dcp-test_coco-street-to-'
-        'dawn-fog.py'),
+        'dawn-fog.py',
+        weights_of='Cascade Mask R-CNN, clear'),
     dict(
         name='dehazer + Cascade Mask R-CNN, clear (test only)',
         config='../projects/peer_dehaze/configs/pretrained/fog_transfer/'
         'cascade-mask-rcnn_mobilenet-v2_fpn_dehazer-test_coco-street-'
-        'to-dawn-fog.py'),
+        'to-dawn-fog.py',
+        weights_of='Cascade Mask R-CNN, clear'),
     dict(
         name='CBNet-PT, clear',
         config='pretrained/fog_transfer/'
@@ -53,12 +55,14 @@ recipes = [
         name='DCP + CBNet-PT, clear (test only)',
         config='../projects/peer_dehaze/configs/pretrained/fog_transfer/'
         'cbnet-pt_mobilenet-v2_fpn-crpn_dcp-test_coco-street-to-dawn-'
-        'fog.py'),
+        'fog.py',
+        weights_of='CBNet-PT, clear'),
     dict(
         name='dehazer + CBNet-PT, clear (test only)',
         config='../projects/peer_dehaze/configs/pretrained/fog_transfer/'
         'cbnet-pt_mobilenet-v2_fpn-crpn_dehazer-test_coco-street-to-'
-        'dawn-fog.py'),
+        'dawn-fog.py',
+        weights_of='CBNet-PT, clear'),
 ]
 # the in-domain ceiling, tabulated from another set's record and never
 # retrained: the same trunk and heads trained on DAWN's own train split,

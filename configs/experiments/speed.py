@@ -1,7 +1,7 @@
 # The demo CBNet before / after the speed settings, the number of NAS-FPN
 # stacks, and the test-time proposal count (the light-neck row's weights
 # tested with 1000 proposals instead of 300: a test-time variant, its
-# config's compare_weights_of) (docs/benchmarks.md).
+# weights_of) (docs/benchmarks.md).
 recipes = [
     dict(
         name='CBNet',
@@ -24,5 +24,6 @@ recipes = [
         name='CBNet light neck, k=1000 at test',
         config='demo/speed/'
         'cbnet_mit-b0_nasfpn-light_test-k1000_1xb4-demo_cityscapes-'
-        'like.py'),
+        'like.py',
+        weights_of='CBNet light neck'),
 ]

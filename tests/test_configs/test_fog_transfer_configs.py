@@ -102,8 +102,7 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
             type='CBNetPairedDataPreprocessor')
         assert [h.type for h in cfg.custom_hooks] == ['CBNetTeacherEMAHook']
     else:  # a dehazer in front of the clear row's weights, test only
-        assert rc.weights_sources([(f'{family}, clear', clear.filename),
-                                   (name, path)])[name] == \
+        assert rc.SETS['fog_transfer'].recipe(name).weights_of == \
             f'{family}, clear'
         front = cfg.model.data_preprocessor
         assert front.type == 'CBNetDehazeDataPreprocessor'

@@ -19,8 +19,8 @@ def stub_comparison(monkeypatch, run_recipe):
     set and no plot."""
     monkeypatch.setattr(lab_run, 'run_recipe', run_recipe)
     monkeypatch.setattr(plan, 'weights_sources',
-                        lambda recipes, rows=None: {n: None
-                                                    for n, _ in recipes})
+                        lambda recipes, *args, **kwargs: {
+                            n: None for n, _ in recipes})
     monkeypatch.setattr(rc, 'reference_condition', lambda recipes: 'clear')
     monkeypatch.setattr(plan, 'check_pretrained', lambda *a: None)
     monkeypatch.setattr(plan, 'check_transfer', lambda *a: None)

@@ -49,7 +49,7 @@ def recipes_with_a_variant(tmp_path):
     base = tmp_path / 'base.py'
     base.write_text('x = 1\n')
     variant = tmp_path / 'variant.py'
-    variant.write_text("compare_weights_of = 'base.py'\n")
+    variant.write_text('x = 2\n')
     return [('base', str(base)), ('variant', str(variant))]
 
 
@@ -68,13 +68,14 @@ def test_a_variant_starts_after_its_source_the_rest_at_once(
         return fake_run(name, seed, 0.5, 0.4)
 
     fake_training(tmp_path, monkeypatch, fake_run_recipe)
-    # the variant's source read from its config
+    # the variant's source as --weights-of gives it
     monkeypatch.setattr(plan, 'weights_sources', WEIGHTS_SOURCES)
     with Threads(2) as pool:
         record = rc.compare(recipes_with_a_variant(tmp_path), [0, 1],
                             ce.Budget(iters=1), str(tmp_path / 'data'),
                             [0.02], str(tmp_path / 'out'),
-                            log=lambda *a: None, executor=pool)
+                            log=lambda *a: None, executor=pool,
+                            weights_of=dict(variant='base'))
     assert [(r['recipe'], r['seed']) for r in record['runs']] == [
         ('base', 0), ('variant', 0), ('base', 1), ('variant', 1)]
     assert events[:2] == [('start', 'base', 0), ('start', 'base', 1)]
@@ -152,14 +153,15 @@ def tiny(cityscapes_like_root, tmp_path_factory):
     run in this process."""
     folder = tmp_path_factory.mktemp('executors')
     variant = folder / 'k100.py'
-    variant.write_text(f"_base_ = '{CRPN}'\ncompare_weights_of = '{CRPN}'\n"
+    variant.write_text(f"_base_ = '{CRPN}'\n"
                        'model = dict(test_cfg=dict(rpn=dict('
                        'max_per_img=100)))\n')
 
     def argv(work_dir, *options):
         return ['--configs', f'CRPN={CRPN}', f'k100={variant}',
-                '--data-root', cityscapes_like_root, '--seeds', '0', '1',
-                '--iters', '2', '--batch-size', '2', '--num-workers', '0',
+                '--weights-of', 'k100=CRPN', '--data-root',
+                cityscapes_like_root, '--seeds', '0', '1', '--iters', '2',
+                '--batch-size', '2', '--num-workers', '0',
                 '--warmup-iters', '1', '--betas', '--work-dir',
                 str(folder / work_dir), *options, '--cfg-options',
                 *TEST_IN_PROCESS]

@@ -13,6 +13,7 @@ from cbnet_lab import config_edits as ce
 from cbnet_lab import executors
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report
+from cbnet_lab.sets import Recipe
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 
@@ -38,27 +39,37 @@ def test_resolve_recipes_errors(tmp_path):
         rc.resolve_recipes(configs=[f'a={cfg}', f'a={cfg}'])
 
 
-def test_weights_sources_of_test_time_variants(tmp_path):
-    """``compare_weights_of`` names an earlier recipe's config (relative to
-    the variant's folder); anything else is a clear error."""
-    (tmp_path / 'sub').mkdir()
-    base = tmp_path / 'base.py'
-    base.write_text('x = 1\n')
-    variant = tmp_path / 'sub' / 'variant.py'
-    variant.write_text("_base_ = '../base.py'\n"
-                       "compare_weights_of = '../base.py'\n")
-    chained = tmp_path / 'chained.py'
-    chained.write_text("compare_weights_of = './sub/variant.py'\n")
-    assert rc.weights_sources([('b', str(base)), ('v', str(variant))]) == \
+def test_weights_sources_of_test_time_variants():
+    """A set row's ``weights_of``, or ``--weights-of`` for a recipe
+    without a row, names an earlier recipe that trains; anything else is a
+    clear error. No config is read."""
+    recipes = [('b', 'base.py'), ('v', 'variant.py')]
+    rows = dict(v=Recipe(name='v', config='variant.py', weights_of='b'))
+    assert rc.weights_sources(recipes, rows) == dict(b=None, v='b')
+    assert rc.weights_sources(recipes, weights_of=dict(v='b')) == \
         dict(b=None, v='b')
-    with pytest.raises(ValueError, match='list it before'):
-        rc.weights_sources([('v', str(variant)), ('b', str(base))])
-    with pytest.raises(ValueError, match='list it before'):
-        rc.weights_sources([('v', str(variant))])
+    assert rc.weights_sources(recipes) == dict(b=None, v=None)
+    with pytest.raises(ValueError, match='before'):
+        rc.weights_sources(recipes[::-1], weights_of=dict(v='b'))
+    with pytest.raises(ValueError, match='before'):
+        rc.weights_sources(recipes[1:], rows)
     # a variant of a variant: its weights were never trained
-    with pytest.raises(ValueError, match='list it before'):
-        rc.weights_sources([('b', str(base)), ('v', str(variant)),
-                            ('c', str(chained))])
+    with pytest.raises(ValueError, match='before'):
+        rc.weights_sources(recipes + [('c', 'chained.py')],
+                           weights_of=dict(v='b', c='v'))
+    with pytest.raises(ValueError, match=r"no recipe named \['x'\]"):
+        rc.weights_sources(recipes, weights_of=dict(x='b'))
+
+
+def test_weights_of_option(capsys):
+    tool = load_tool('analysis_tools/compare_recipes.py')
+    args = tool.parse_args(['--configs', 'a.py', 'b.py', '--weights-of',
+                            'b=a'])
+    assert args.weights_of == dict(b='a')
+    assert tool.parse_args(['--set', 'speed']).weights_of == {}
+    with pytest.raises(SystemExit):
+        tool.parse_args(['--configs', 'a.py', '--weights-of', 'b'])
+    assert '--weights-of NAME=SOURCE' in capsys.readouterr().err
 
 
 def test_a_variant_without_its_source_weights_is_a_clear_error(tmp_path):
@@ -135,12 +146,13 @@ def test_compare_end_to_end_trained_beats_untrained(
                                     str(tmp_path / 'untrained')])
     # a test-time variant: the CRPN's weights, 100 proposals kept
     variant = tmp_path / 'k100.py'
-    variant.write_text(f"_base_ = '{crpn}'\ncompare_weights_of = '{crpn}'\n"
+    variant.write_text(f"_base_ = '{crpn}'\n"
                        'model = dict(test_cfg=dict(rpn=dict('
                        'max_per_img=100)))\n')
     with_variant = common + [
         '--iters', '40', '--work-dir', str(tmp_path / 'trained'),
-        '--configs', f'CRPN={crpn}', f'k100={variant}'
+        '--configs', f'CRPN={crpn}', f'k100={variant}', '--weights-of',
+        'k100=CRPN'
     ]
     trained = tool.main(with_variant)
     for record, out in ((untrained, 'untrained'), (trained, 'trained')):

@@ -9,10 +9,10 @@ drop from clear to each fog density, training time) and ``compare.png``
 (the main metric vs fog density per recipe). Finished runs are kept: a
 rerun (after a kill, or with more seeds) only trains what is missing.
 
-A config that sets ``compare_weights_of = 'other_config.py'`` (relative to
-its folder) is a test-time variant: not trained, it tests the weights that
-recipe trained for each seed (list that recipe first) under its own test
-settings.
+A test-time variant is not trained: it tests the weights another recipe
+trained for each seed (list that recipe first) under its own test
+settings; a set's rows say it with ``weights_of`` in the set file,
+``--configs`` recipes with ``--weights-of NAME=SOURCE``.
 
 Built-in sets (configs under configs/, the dehazer + detector ones under
 projects/peer_dehaze/configs/; demo-size, one MiT-B0 trunk):
@@ -205,6 +205,12 @@ def parse_args(argv=None):
                         "the coco_street set's, for the clear-only rows): "
                         'its finished runs (same budget and data) are '
                         'tested here, not trained again')
+    parser.add_argument('--weights-of', nargs='+', default=[],
+                        metavar='NAME=SOURCE',
+                        help='test-time variants among --configs: recipe '
+                        'NAME trains nothing and tests the weights that '
+                        'recipe SOURCE (listed before it) trained, seed by '
+                        "seed (a set's rows: weights_of in its file)")
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--iters', type=int,
                         help='training iterations per run (0: untrained)')
@@ -265,6 +271,11 @@ def parse_args(argv=None):
     args = parser.parse_args(argv)
     if args.set is None and not args.configs:
         parser.error('give --set or --configs')
+    variants = [item.partition('=') for item in args.weights_of]
+    if any(not name or not sep or not source
+           for name, sep, source in variants):
+        parser.error(f'--weights-of NAME=SOURCE, got {args.weights_of}')
+    args.weights_of = {name: source for name, _, source in variants}
     if args.preset is None:
         args.preset = SET_PRESETS.get(args.set, 'demo')
     preset = PRESETS[args.preset]
@@ -344,7 +355,7 @@ def main(argv=None) -> dict:
                             transfer_root=args.transfer_root,
                             ceiling_record=args.ceiling,
                             weights_from=args.weights_from,
-                            executor=executor)
+                            executor=executor, weights_of=args.weights_of)
     print(f'written: {osp.join(work_dir, "compare.json")}, compare.md, '
           'compare.png')
     return record

@@ -1,9 +1,10 @@
 # Dehaze-then-detect at TEST time only (fog_transfer set): the dark
 # channel prior (He et al., the peer's training-free dehazer) in front of
 # MMDet's stock Cascade Mask R-CNN trained on clear photos. Nothing is trained:
-# compare_weights_of names the floor's config, so the harness tests the floor's
-# checkpoint of each seed (an error naming it when that run is missing), on
-# COCO street val (dehazing clear photos: its cost) and on DAWN's real fog val.
+# its row names the floor's row (weights_of, configs/experiments/
+# fog_transfer.py), so the harness tests the floor's checkpoint of each seed
+# (an error naming it when that run is missing), on COCO street val (dehazing
+# clear photos: its cost) and on DAWN's real fog val.
 _base_ = [
     '../../../../../configs/pretrained/fog_transfer/'
     'cascade-mask-rcnn_mobilenet-v2_fpn_'
@@ -14,9 +15,6 @@ _base_ = [
 custom_imports = dict(
     imports=['cbnet_mmdet', 'cbnet_dehaze'], allow_failed_imports=False)
 
-compare_weights_of = ('../../../../../configs/pretrained/fog_transfer/'
-                      'cascade-mask-rcnn_mobilenet-v2_fpn_'
-                      '1xb2-ft_coco-street-to-dawn-fog.py')
 model = dict(
     data_preprocessor=dict(
         _base_.dehaze_preprocessor, dehaze=_base_.fog_dcp,
