@@ -2,7 +2,7 @@
 :class:`Job` per recipe and seed (:func:`plan_jobs`), which recipe's
 weights each recipe tests (:func:`weights_sources`), which rows train as
 another set's (:func:`trained_as`), the condition every recipe is tested
-on first (:func:`reference_condition`), and the data, second test sets
+on first (:func:`reference_condition`), and the data, second test set
 and pretrained files the runs need (:func:`check_inputs`), so that a
 missing file stops a comparison before it trains anything.
 """
@@ -12,10 +12,10 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 from cbnet_tools.pretrained import require_pretrained
 
-from .config_edits import Budget, read_config, test_condition, transfer_test
+from .config_edits import Budget, read_config, test_condition
 from .run_files import check_weights_from, find_trained, result_file
-from .sets import (SET_TRAINED_AS, Recipe, resolve_recipes, row_budget,
-                   set_rows)
+from .sets import (SET_TRAINED_AS, SETS, Recipe, resolve_recipes,
+                   row_budget, set_rows)
 
 
 @dataclass
@@ -36,7 +36,10 @@ class Job:
         betas (list[float]): The fog densities it is tested on.
         out_dir (str): The comparison's work dir.
         cfg_options (dict, optional): Overrides of every config.
-        transfer_root (str, optional): The folder of a second test set.
+        transfer_test (dict, optional): A second test set (its set's
+            ``transfer_test``).
+        transfer_root (str, optional): Its folder, in place of its
+            ``data_root``.
         weights_of (str, optional): The recipe whose weights of the same
             seed it tests (trains nothing; runs after that one).
         test_only (bool): Trains nothing: tests the weights its config
@@ -55,6 +58,7 @@ class Job:
     betas: List[float]
     out_dir: str
     cfg_options: Optional[dict] = None
+    transfer_test: Optional[dict] = None
     transfer_root: Optional[str] = None
     weights_of: Optional[str] = None
     test_only: bool = False
@@ -103,9 +107,10 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         betas (Sequence[float]): Fog densities to test on.
         out_dir (str): The comparison's work dir.
         cfg_options (dict, optional): Overrides for every config.
-        set_name (str, optional): The built-in set the recipes are of.
-        transfer_root (str, optional): The folder of the recipes'
-            ``transfer_test``.
+        set_name (str, optional): The built-in set the recipes are of; its
+            ``transfer_test`` is every run's second test set.
+        transfer_root (str, optional): The folder of that second test
+            set, in place of its ``data_root``.
         weights_from (str, optional): The work dir of the set some rows
             train as (:func:`trained_as`): each seed finished there is
             tested, not trained (:func:`cbnet_lab.run_files.find_trained`).
@@ -123,6 +128,7 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             budget or overrides.
     """
     rows = set_rows(set_name, recipes)
+    transfer = None if set_name is None else SETS[set_name].transfer_test
     sources = weights_sources(recipes, rows, weights_of)
     budgets = {n: row_budget(budget, rows.get(n)) for n, _ in recipes}
     elsewhere = trained_as(set_name, recipes) if weights_from else {}
@@ -134,7 +140,7 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     for index, (name, config, seed) in enumerate(pairs, 1):
         row = rows.get(name)
         job = Job(index, len(pairs), name, config, seed, budgets[name],
-                  data_root, list(betas), out_dir, cfg_options,
+                  data_root, list(betas), out_dir, cfg_options, transfer,
                   transfer_root, weights_of=sources[name],
                   test_only=bool(row and row.test_only))
         if job.test_only:
@@ -289,24 +295,33 @@ def check_data(reference: str, data_root: str,
             '`python tools/dataset_converters/cityscapes.py DIR`)')
 
 
-def check_transfer(recipes: Sequence[Tuple[str, str]],
-                   transfer_root: Optional[str]) -> None:
-    """The real-fog folder of the recipes' ``transfer_test`` exists, before
-    any training (each config's own ``data_root`` when ``transfer_root``
-    is None); ``transfer_root`` without such a recipe is an error."""
-    specs = {name: transfer_test(read_config(config))
-             for name, config in recipes}
-    if transfer_root is not None and not any(specs.values()):
+def check_transfer(jobs: Sequence[Job], transfer_root: Optional[str],
+                   reference: str = 'clear') -> None:
+    """The runs' second test set (their set's ``transfer_test``), before
+    any training: its VOC folder exists (``transfer_root``, else the set
+    file's ``data_root``) and its name is not that of the recipes' own
+    test set (``reference``); ``transfer_root`` without a second test set
+    is an error."""
+    spec = next((job.transfer_test for job in jobs if job.transfer_test),
+                None)
+    if spec is None:
+        if transfer_root is not None:
+            raise ValueError(
+                f'--transfer-root {transfer_root}: the recipes have no '
+                "second test set (their set's transfer_test), so it would "
+                'not be read')
+        return
+    if spec['condition'] == reference:
         raise ValueError(
-            f'--transfer-root {transfer_root}: no recipe sets transfer_test '
-            '(a second test set), so it would not be read')
-    for name, spec in specs.items():
-        root = transfer_root or (spec or {}).get('data_root')
-        if spec is not None and not osp.isdir(root):
-            raise FileNotFoundError(
-                f'recipe {name!r} is also tested on {spec["condition"]!r}, '
-                f'the VOC folder {root}, which does not exist; give it with '
-                '--transfer-root')
+            f"the second test set {spec['condition']!r} (the set's "
+            'transfer_test) is also the name of the recipes\' own test '
+            'set; give it another name')
+    root = transfer_root or spec['data_root']
+    if not osp.isdir(root):
+        raise FileNotFoundError(
+            f"the recipes are also tested on {spec['condition']!r}, the VOC "
+            f'folder {root}, which does not exist; give it with '
+            '--transfer-root')
 
 
 def check_pretrained(recipes: Sequence[Tuple[str, str]],
@@ -324,8 +339,8 @@ def check_inputs(recipes: Sequence[Tuple[str, str]], jobs: Sequence[Job],
                  reference: str, data_root: str, betas: Sequence[float],
                  transfer_root: Optional[str] = None) -> None:
     """What the runs read, before the first one: the data
-    (:func:`check_data`), the second test sets (:func:`check_transfer`)
+    (:func:`check_data`), the second test set (:func:`check_transfer`)
     and the pretrained files (:func:`check_pretrained`)."""
     check_data(reference, data_root, betas)
-    check_transfer(recipes, transfer_root)
+    check_transfer(jobs, transfer_root, reference)
     check_pretrained(recipes, {job.name: job.weights_of for job in jobs})

@@ -27,14 +27,15 @@ comparison (listed before it), under the variant's own test settings
 (``model.test_cfg``, test pipeline). That compares, say, test-time
 proposal counts on the very same weights.
 
-Transfer. A config that also sets ``transfer_test`` (the
-``fog_transfer`` set: trained on clear COCO street photos) is tested on
-its own test set and then on that real-fog VOC folder (``transfer_root``,
-default the config's), two conditions per run and the drop between them
-(:func:`cbnet_lab.ap_drop.ap_drop`). A test-time variant runs after its
-source run of the same seed; a source whose checkpoint is missing (never
-trained, or restored from a record without its weights) is an error
-naming the file.
+A test-time variant runs after its source run of the same seed; a source
+whose checkpoint is missing (never trained, or restored from a record
+without its weights) is an error naming the file.
+
+Transfer. The runs of a set whose file sets ``transfer_test`` (the
+``fog_transfer`` set: trained on clear COCO street photos) are tested on
+their own test set and then on that real-fog VOC folder
+(``transfer_root``, default the set file's), two conditions per run and
+the drop between them (:func:`cbnet_lab.ap_drop.ap_drop`).
 
 Runs trained by another set. Some rows of a set train exactly what a
 row of another set trains (:data:`SET_TRAINED_AS`: the fog_transfer set's
@@ -123,9 +124,9 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
             out are listed (``missing`` in the record, a line under the
             tables) and the record names no machine (``machine`` None:
             the runs say nothing of where they were trained).
-        transfer_root (str, optional): The real-fog folder of the recipes'
-            ``transfer_test`` (None: each config's own); in the record
-            when given.
+        transfer_root (str, optional): The real-fog folder of the set's
+            ``transfer_test`` (None: the set file's); in the record when
+            given.
         ceiling_record (str, optional): The ``compare.json`` of the set
             that is this set's in-domain ceiling (:data:`SET_CEILINGS`),
             tabulated under the results (``ceiling`` in the record).

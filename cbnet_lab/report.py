@@ -115,10 +115,10 @@ def plot(summary: dict, betas: Sequence[float], path: str,
     """AP (or AR) vs fog density per recipe, mean +- std over seeds.
 
     With no fog density (real data), a bar per recipe on the last
-    condition: the only one, or a second test set (``transfer_test``: real
-    fog after clear training). With fog densities and a second test set
-    after them (real fog after training on generated scenes), the curve
-    and, beside it, those bars.
+    condition: the only one, or a second test set (a set's
+    ``transfer_test``: real fog after clear training). With fog densities
+    and a second test set after them (real fog after training on generated
+    scenes), the curve and, beside it, those bars.
 
     Args:
         summary (dict): :func:`summarize` output.

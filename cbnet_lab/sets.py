@@ -5,8 +5,9 @@ harness and by the GPU script alike.
 A set file names its recipes (each an MMDet config under ``configs/``, or
 ``../projects/...``), the preset it runs under by default (data root and
 budget, from ``configs/experiments/_base_/presets.py``), the columns it
-reports, and, where it has them, its in-domain ceiling (another set's
-record, never retrained) and the rows that train exactly as another set's::
+reports, and, where it has them, a second test set, its in-domain ceiling
+(another set's record, never retrained) and the rows that train exactly as
+another set's::
 
     # what the set asks, in a comment
     preset = 'realfog_pretrained'
@@ -22,6 +23,10 @@ record, never retrained) and the rows that train exactly as another set's::
         dict(name='..., 24 epochs', config='...',
              budget=dict(iters_scale=2)),
     ]
+    # every run also tested on a VOC real-fog folder's val split, under
+    # this condition (--transfer-root, or the preset's, moves it)
+    transfer_test = dict(condition='real fog', data_root='data/dawn_fog/',
+                         split='val', val_fraction=0.3, split_seed=0)
 
 Row names are the keys of the runs (``{work_dir}/{slug(name)}/seed{s}``):
 rows are only ever appended or renamed together with their runs.
@@ -58,6 +63,7 @@ from mmengine.config import Config
 
 from .config_edits import Budget, configs_root
 from .metric_keys import columns as metric_columns
+from .set_conditions import transfer_test
 from .set_device import (DeviceData, DeviceSpec, data_folder,  # noqa: F401
                          device_data, device_spec, only_keys)
 
@@ -68,8 +74,8 @@ PRESETS_FILE = osp.join('_base_', 'presets.py')
 #: The keys a row may have.
 ROW_KEYS = ('name', 'config', 'weights_of', 'test_only', 'budget')
 #: The keys a set file may have.
-SET_KEYS = ('preset', 'columns', 'recipes', 'ceiling', 'trained_as',
-            'device')
+SET_KEYS = ('preset', 'columns', 'recipes', 'transfer_test', 'ceiling',
+            'trained_as', 'device')
 
 
 @dataclass
@@ -83,8 +89,9 @@ class Preset:
         warmup_iters (int): Linear warm-up iterations.
         img_scale (tuple[int, int], optional): ``(w, h)`` of every Resize
             (None: each config's own).
-        transfer_root (str, optional): The real-fog folder the recipes'
-            ``transfer_test`` is read from (None: the configs').
+        transfer_root (str, optional): The real-fog folder of the set's
+            second test set, in place of its ``transfer_test``'s
+            ``data_root`` (None: the set file's).
     """
     data_root: str
     iters: int
@@ -135,6 +142,10 @@ class ExperimentSet:
         preset (str): The preset it runs under by default.
         columns (tuple, optional): ``(name, metric key, scale)`` of the
             columns it reports first (None: the detection columns).
+        transfer_test (dict, optional): Its second test set, which every
+            run is also tested on (``condition``, the VOC folder
+            ``data_root`` and its split's arguments:
+            :func:`cbnet_lab.config_edits.transfer_cfg`).
         ceiling (dict, optional): Its in-domain ceiling, from another
             set's record (``set``, ``condition``, ``what``, ``rows``).
         trained_as (dict, optional): Rows that train exactly as rows of
@@ -146,6 +157,7 @@ class ExperimentSet:
     recipes: List[Recipe]
     preset: str = 'demo'
     columns: Optional[tuple] = None
+    transfer_test: Optional[dict] = None
     ceiling: Optional[dict] = None
     trained_as: Optional[dict] = None
     device: Optional[DeviceSpec] = None
@@ -223,7 +235,7 @@ def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
         ValueError: A malformed file: an unknown key, a row without a name
             or config, a name given twice, a ``weights_of`` that names no
             earlier row, an unknown preset or column, a malformed
-            ``device``.
+            ``transfer_test`` or ``device``.
     """
     if path is None:
         files = set_files()
@@ -267,7 +279,9 @@ def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
             raise ValueError(f'{path}: unknown column {err}') from None
     return ExperimentSet(
         name=name, file=path, recipes=recipes, preset=preset,
-        columns=columns, ceiling=spec.get('ceiling'),
+        columns=columns,
+        transfer_test=transfer_test(path, spec.get('transfer_test')),
+        ceiling=spec.get('ceiling'),
         trained_as=spec.get('trained_as'),
         device=device_spec(path, spec.get('device'), recipes, preset,
                            presets))

@@ -98,7 +98,7 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
         results, None if columns is None else
         (tuple(columns), DETECTION_COLUMNS, PROPOSAL_COLUMNS))
     conditions = condition_names(betas, reference)
-    # a recipe's transfer_test set comes after them (fog_transfer)
+    # the set's second test set comes after them (its transfer_test)
     for r in results:
         conditions += [c for c in r['metrics'] if c not in conditions]
     recipes: Dict[str, List[dict]] = {}

@@ -8,10 +8,10 @@ composed here once per run.
   resize every pipeline), plus where a killed run resumes from.
 - :mod:`.testing`: a checkpoint's test configs, each a test-only runner's
   (:func:`test_cfg`): clear / foggy val (:func:`condition_cfg`), real fog
-  (:func:`real_fog_cfg`), a config's second test set
-  (:func:`transfer_cfg`), corrupted images (:func:`corrupted_cfg`);
-  composed for the AP drop (:func:`ap_drop_cfgs`) and for the corruption
-  benchmark (:func:`robustness_cfgs`).
+  (:func:`real_fog_cfg`), a second test set (:func:`transfer_cfg`),
+  corrupted images (:func:`corrupted_cfg`); composed for the AP drop
+  (:func:`ap_drop_cfgs`) and for the corruption benchmark
+  (:func:`robustness_cfgs`).
 - :mod:`.weightless`: the benchmarks' and profiler's weightless build
   (:func:`load_benchmark_cfg`) and the optimiser of their timed steps.
 - :mod:`.reading`: where the configs are and a parse cache
@@ -23,10 +23,9 @@ would silently not apply.
 """
 from .reading import configs_root, read_config
 from .testing import (CLEAR_TYPES, FOGGY_TYPE, LOADER_TYPES, PACK_META_KEYS,
-                      TRANSFER_KEYS, ap_drop_cfgs, condition_cfg,
-                      corrupted_cfg, default_betas, real_fog_cfg,
-                      robustness_cfgs, test_cfg, test_condition,
-                      transfer_cfg, transfer_test)
+                      ap_drop_cfgs, condition_cfg, corrupted_cfg,
+                      default_betas, real_fog_cfg, robustness_cfgs, test_cfg,
+                      test_condition, transfer_cfg)
 from .training import (ITER_CHECKPOINT, Budget, budget_cfg,
                        checkpoint_interval, checkpoint_iter,
                        replace_data_root, resume_file, set_img_scale)
@@ -36,9 +35,8 @@ __all__ = [
     'configs_root', 'read_config', 'Budget', 'budget_cfg',
     'replace_data_root', 'set_img_scale', 'checkpoint_interval',
     'ITER_CHECKPOINT', 'resume_file', 'checkpoint_iter', 'CLEAR_TYPES',
-    'FOGGY_TYPE', 'PACK_META_KEYS', 'TRANSFER_KEYS', 'LOADER_TYPES',
-    'test_condition', 'default_betas', 'transfer_test', 'condition_cfg',
-    'real_fog_cfg', 'transfer_cfg', 'corrupted_cfg', 'test_cfg',
-    'ap_drop_cfgs', 'robustness_cfgs', 'strip_pretrained',
-    'load_benchmark_cfg', 'timing_optim_cfg'
+    'FOGGY_TYPE', 'PACK_META_KEYS', 'LOADER_TYPES', 'test_condition',
+    'default_betas', 'condition_cfg', 'real_fog_cfg', 'transfer_cfg',
+    'corrupted_cfg', 'test_cfg', 'ap_drop_cfgs', 'robustness_cfgs',
+    'strip_pretrained', 'load_benchmark_cfg', 'timing_optim_cfg'
 ]

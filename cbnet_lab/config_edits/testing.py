@@ -1,5 +1,5 @@
 """The test configs of a checkpoint: clear or foggy val, real fog, a
-config's second test set, corrupted images, each a test-only runner's
+second test set, corrupted images, each a test-only runner's
 config (:func:`test_cfg`), composed per measurement by
 :func:`ap_drop_cfgs` (the AP drop) and :func:`robustness_cfgs` (the
 corruption benchmark).
@@ -12,10 +12,10 @@ evaluated as it is, under that name, and foggy betas are an error.
 its model and test pipeline on the val split of a VOC real-fog folder,
 boxes only.
 
-Transfer. A config that also sets ``transfer_test = dict(condition=NAME,
-data_root=VOC_FOLDER, ...)`` (the fog_transfer recipes of
-``configs/pretrained/fog_transfer/``: trained on clear photos) is tested
-on its own test set first, then on that real-fog folder under ``NAME``
+Transfer. Given a second test set, ``dict(condition=NAME,
+data_root=VOC_FOLDER, ...)`` (a set file's ``transfer_test``: the
+fog_transfer set, trained on clear photos), a config is tested on its own
+test set first, then on that real-fog folder under ``NAME``
 (:func:`transfer_cfg`), so the drop from one to the other is reported.
 """
 import copy
@@ -33,11 +33,6 @@ FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'
 #: ``PackDetInputs``' default ``meta_keys`` (MMDet 3.x).
 PACK_META_KEYS = ('img_id', 'img_path', 'ori_shape', 'img_shape',
                   'scale_factor', 'flip', 'flip_direction')
-#: Keys of a config's ``transfer_test``: the condition's name and VOC
-#: folder are required, the rest are :class:`CBNetVOCFogDataset`'s split
-#: arguments.
-TRANSFER_KEYS = ('condition', 'data_root', 'split', 'val_fraction',
-                 'split_seed', 'ann_file', 'img_suffix')
 #: Loaders after which ``Corrupt`` is inserted: MMCV's (as a config may
 #: name it) and the project's checking one.
 LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
@@ -62,36 +57,6 @@ def default_betas(cfg: Config,
                   betas: Sequence[float] = (0.02, )) -> List[float]:
     """``betas`` for a Cityscapes config, none for a real-data one."""
     return [] if test_condition(cfg) else list(betas)
-
-
-def transfer_test(cfg: Config) -> Optional[dict]:
-    """The ``transfer_test`` of a config (None when it has none), checked.
-
-    Raises:
-        ValueError: It lacks ``condition`` or ``data_root``, has a key
-            other than :data:`TRANSFER_KEYS`, or names the condition the
-            config's own test set is reported under.
-    """
-    spec = cfg.get('transfer_test')
-    if spec is None:
-        return None
-    where = f'{cfg.filename}: transfer_test'
-    if not isinstance(spec, dict):
-        raise ValueError(f'{where} must be a dict, got {spec!r}')
-    spec = dict(spec)
-    unknown = sorted(set(spec) - set(TRANSFER_KEYS))
-    if unknown:
-        raise ValueError(f'{where}: unknown keys {unknown}; known: '
-                         f'{list(TRANSFER_KEYS)}')
-    for key in ('condition', 'data_root'):
-        if not isinstance(spec.get(key), str) or not spec[key].strip():
-            raise ValueError(f'{where} needs a non-empty {key!r}, got '
-                             f'{spec.get(key)!r}')
-    if spec['condition'] == (test_condition(cfg) or 'clear'):
-        raise ValueError(
-            f"{where}: condition {spec['condition']!r} is also the name of "
-            'the config\'s own test set; give the transfer set another name')
-    return spec
 
 
 def condition_cfg(cfg: Config, beta: Optional[float] = None) -> Config:
@@ -131,7 +96,7 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     truth passed on for ``CocoMetric`` (``'instances'`` in
     ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
     (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
-    ``test_condition`` is ``'real fog'``; a ``transfer_test`` is dropped.
+    ``test_condition`` is ``'real fog'``.
 
     Args:
         cfg (Config): A detector config of the project (CBNet, CBNet-DD,
@@ -166,34 +131,34 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     cfg.test_dataloader.dataset = dataset
     cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
     cfg.test_condition = 'real fog'
-    # it tests real fog itself now: no second test set after it
-    cfg.pop('transfer_test', None)
     return cfg
 
 
-def transfer_cfg(cfg: Config, data_root: Optional[str] = None) -> Config:
-    """Copy of ``cfg`` testing its model on its ``transfer_test`` set.
+def transfer_cfg(cfg: Config, spec: dict,
+                 data_root: Optional[str] = None) -> Config:
+    """Copy of ``cfg`` testing its model on a second test set.
 
     Args:
-        cfg (Config): A config with ``transfer_test``.
+        cfg (Config): A detector config.
+        spec (dict): The second test set (a set file's ``transfer_test``,
+            :func:`cbnet_lab.set_conditions.transfer_test`): its
+            ``condition``, the VOC folder ``data_root`` and the split's
+            :class:`CBNetVOCFogDataset` arguments.
         data_root (str, optional): The VOC folder, in place of
-            ``transfer_test.data_root``.
+            ``spec['data_root']``.
 
     Returns:
         Config: :func:`real_fog_cfg` of ``cfg`` on that folder, its
         ``test_condition`` the transfer condition's name.
     """
-    spec = transfer_test(cfg)
-    if spec is None:
-        raise ValueError(f'{cfg.filename} has no transfer_test')
+    spec = dict(spec)
     name, root = spec.pop('condition'), spec.pop('data_root')
     root = data_root or root
     if not osp.isdir(root):
         raise FileNotFoundError(
             f'the transfer test set {name!r} ({cfg.filename}) is the VOC '
             f'folder {root}, which does not exist; give its folder '
-            '(compare_recipes.py --transfer-root DIR, or --cfg-options '
-            'transfer_test.data_root=DIR)')
+            '(compare_recipes.py --transfer-root DIR)')
     out = real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
     out.test_condition = name
     return out
@@ -274,13 +239,14 @@ def _folder(condition: str) -> str:
 
 def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
                  betas: Sequence[float] = (0.02, ),
+                 transfer_test: Optional[dict] = None,
                  transfer_root: Optional[str] = None) -> Dict[str, Config]:
     """The test configs of the AP drop, by condition, in order.
 
     Clear val, then foggy val for each beta; a config with
     ``test_condition = NAME`` (real data) is tested on its own test set
-    only, as condition ``NAME``; a config with ``transfer_test`` is then
-    also tested on that set (last condition).
+    only, as condition ``NAME``; with ``transfer_test`` it is then also
+    tested on that set (last condition).
 
     Args:
         cfg (Config): Test config.
@@ -288,11 +254,17 @@ def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
         work_dir (str): Output folder of the runs.
         betas (Sequence[float]): Fog densities, 1/m (none for a config with
             ``test_condition``).
-        transfer_root (str, optional): The folder of the config's
-            ``transfer_test`` set, in place of its ``data_root``.
+        transfer_test (dict, optional): A second test set (a set file's
+            ``transfer_test``: :func:`transfer_cfg`).
+        transfer_root (str, optional): The folder of ``transfer_test``, in
+            place of its ``data_root``.
 
     Returns:
         dict: condition -> :func:`test_cfg` of it.
+
+    Raises:
+        ValueError: Foggy betas for real data, or a second test set named
+            as a condition of the first.
     """
     real = test_condition(cfg)
     if real and betas:
@@ -305,10 +277,15 @@ def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
     for beta in betas:
         conditions[f'foggy beta={beta}'] = condition_cfg(cfg, beta)
         folders[f'foggy beta={beta}'] = f'foggy_beta_{beta}'
-    if transfer_test(cfg) is not None:
-        other = transfer_cfg(cfg, transfer_root)
-        conditions[other.test_condition] = other
-        folders[other.test_condition] = _folder(other.test_condition)
+    if transfer_test is not None:
+        name = transfer_test['condition']
+        if name in conditions:
+            raise ValueError(
+                f'the second test set {name!r} is named as a condition of '
+                f'the config\'s own test set ({list(conditions)}); give it '
+                'another name')
+        conditions[name] = transfer_cfg(cfg, transfer_test, transfer_root)
+        folders[name] = _folder(name)
     return {condition: test_cfg(c, checkpoint, work_dir, folders[condition],
                                 prefix='ap_drop')
             for condition, c in conditions.items()}

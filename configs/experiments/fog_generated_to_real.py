@@ -26,5 +26,10 @@ recipes = [
         'cbnet-pt_mobilenet-v2_fpn-crpn_1xb4-ft_foggy-cityscapes-'
         'like-to-dawn-fog.py'),
 ]
+# every run is tested on generated clear and foggy val, then on DAWN's fog
+# and haze val photos as the fog_transfer set's runs are (real fog, boxes
+# only; --transfer-root, the preset's, moves the folder)
+transfer_test = dict(condition='real fog', data_root='data/dawn_fog/',
+                     split='val', val_fraction=0.3, split_seed=0)
 # the row the lent GPU script's dry run trains (tools/device/run_all.py)
 device = dict(dry_row='Cascade Mask R-CNN, generated clear')

@@ -64,6 +64,15 @@ recipes = [
         'dawn-fog.py',
         weights_of='CBNet-PT, clear'),
 ]
+# every run is tested on its own test set, then on DAWN's fog and haze val
+# photos (real fog; --transfer-root, the preset's, moves the folder): the
+# recipe's own test pipeline, boxes only (cbnet_lab.config_edits
+# .real_fog_cfg), DAWN's VOC names read as the project's 8 classes, the
+# seeded split of configs/realfog/_base_/voc-fog_box.py (30 % val, seed 0):
+# the same 65 val photos the realfog_pretrained set (the in-domain ceiling)
+# is tested on
+transfer_test = dict(condition='real fog', data_root='data/dawn_fog/',
+                     split='val', val_fraction=0.3, split_seed=0)
 # the in-domain ceiling, tabulated from another set's record and never
 # retrained: the same trunk and heads trained on DAWN's own train split,
 # box-only, tested on the same 65 val photos (rows: by the prefix of this

@@ -23,6 +23,9 @@ SHIPPED = sorted(
                        'pretrained', 'fog_transfer', '*.py')))
 SET = rc.resolve_recipes('fog_transfer')
 GENERATED = rc.resolve_recipes('fog_generated_to_real')
+#: the second test set of both sets: DAWN's val split
+TRANSFER = dict(condition='real fog', data_root='data/dawn_fog/',
+                split='val', val_fraction=0.3, split_seed=0)
 STREET = dict(rc.resolve_recipes('coco_street'))
 #: trunk and heads: the coco_street row each family starts from
 FAMILIES = {'Cascade Mask R-CNN': STREET['Cascade Mask R-CNN'],
@@ -42,6 +45,10 @@ def empty_cache(tmp_path, monkeypatch):
 def test_every_config_is_in_a_set():
     assert sorted(osp.normpath(p) for _, p in SET + GENERATED) == SHIPPED
     assert len(SET) == 10 and len(GENERATED) == 4
+    # both sets' runs are also tested on DAWN's val split (the same 65
+    # photos as the realfog_pretrained set)
+    for name in ('fog_transfer', 'fog_generated_to_real'):
+        assert rc.SETS[name].transfer_test == TRANSFER
 
 
 @pytest.mark.parametrize('name,path', GENERATED[1::2],
@@ -54,8 +61,6 @@ def test_generated_fog_row_is_its_clear_row_on_depth_fog(name, path):
     clear, cfg = load(clear_path), load(path)
     family = next(f for f in FAMILIES if f in name)
     assert clear.model == load(FAMILIES[family]).model
-    assert clear.transfer_test == load(dict(SET)[f'{family}, clear'
-                                                 ]).transfer_test
     assert clear.train_dataloader.dataset.dataset.type == \
         'CBNetCityscapesDataset'
     fog = cfg.train_dataloader.dataset.dataset
@@ -77,10 +82,6 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
     assert clear.model == street.model
     assert clear.train_dataloader == street.train_dataloader
     assert clear.test_dataloader == street.test_dataloader
-    assert clear.transfer_test == dict(
-        condition='real fog', data_root='data/dawn_fog/', split='val',
-        val_fraction=0.3, split_seed=0)
-    assert cfg.transfer_test == clear.transfer_test
     assert cfg.test_dataloader == clear.test_dataloader
     steps = [t['type'] for t in cfg.train_dataloader.dataset.pipeline]
     plain = [t['type'] for t in clear.train_dataloader.dataset.pipeline]
@@ -137,7 +138,7 @@ def test_builds_without_weights_and_tests_on_real_fog(name, path,
         assert len(model.extract_feat(torch.zeros(1, 3, 128, 192))) == 5
     # the second test set: DAWN's val split through the recipe's own test
     # pipeline, boxes only
-    fog = transfer_cfg(cfg, str(tmp_path))
+    fog = transfer_cfg(cfg, TRANSFER, str(tmp_path))
     dataset = fog.test_dataloader.dataset
     assert (fog.test_condition, dataset.type, dataset.data_root,
             dataset.split, dataset.val_fraction, dataset.split_seed) == \

@@ -22,7 +22,7 @@ from cbnet_lab import config_edits as ce
 from cbnet_lab import plan
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import run as lab_run
-from cbnet_lab import summary
+from cbnet_lab import set_conditions, summary
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
@@ -238,36 +238,47 @@ def fake_runs(monkeypatch):
 
 
 def test_transfer_test_is_checked(tmp_path):
-    cfg = Config(dict(test_condition='coco street', transfer_test=dict(
-        condition='real fog', data_root=str(tmp_path / 'missing'))))
+    spec = dict(condition='real fog', data_root=str(tmp_path / 'missing'))
+    cfg = Config(dict(test_dataloader=dict(dataset=dict(pipeline=[]))))
     cfg.filename = 'x.py'
-    assert ce.transfer_test(cfg)['condition'] == 'real fog'
     with pytest.raises(FileNotFoundError, match='--transfer-root'):
-        ce.transfer_cfg(cfg)
-    # a config made to test real fog itself tests no second set after it
-    assert 'transfer_test' not in ce.real_fog_cfg(Config(dict(
-        transfer_test=dict(condition='fog', data_root=str(tmp_path)),
-        test_dataloader=dict(dataset=dict(pipeline=[])))), str(tmp_path))
+        ce.transfer_cfg(cfg, spec)
+    assert ce.transfer_cfg(cfg, spec, str(tmp_path)).test_dataloader \
+        .dataset.data_root == str(tmp_path)
+    assert ce.transfer_cfg(cfg, spec, str(tmp_path)).test_condition == \
+        'real fog'
+    # a set file's transfer_test, read
     for bad, match in (
             (dict(data_root='d'), "non-empty 'condition'"),
             (dict(condition='real fog'), "non-empty 'data_root'"),
             (dict(condition='real fog', data_root='d', splt='val'),
              r"unknown keys \['splt'\]"),
-            (dict(condition='coco street', data_root='d'),
-             'also the name')):
-        cfg.transfer_test = bad
-        with pytest.raises(ValueError, match=match):
-            ce.transfer_test(cfg)
+            ('real fog', 'must be dict')):
+        with pytest.raises(ValueError, match=match) as err:
+            set_conditions.transfer_test('my_set.py', bad)
+        assert 'my_set.py: transfer_test' in str(err.value)
+    assert set_conditions.transfer_test('my_set.py', None) is None
+
+
+def transfer_jobs(set_name, budget=ce.Budget(iters=1)):
+    """The runs of a set's first row, seed 0."""
+    return plan.plan_jobs(rc.resolve_recipes(set_name)[:1], [0], budget,
+                          'data', [], 'out', set_name=set_name)
 
 
 def test_transfer_root_and_ceiling_errors(tmp_path):
-    street = rc.resolve_recipes('coco_street')[:1]
-    transfer = rc.resolve_recipes('fog_transfer')[:1]
-    with pytest.raises(ValueError, match='no recipe sets transfer_test'):
+    street, transfer = transfer_jobs('coco_street'), \
+        transfer_jobs('fog_transfer')
+    assert street[0].transfer_test is None
+    assert transfer[0].transfer_test == \
+        rc.SETS['fog_transfer'].transfer_test
+    with pytest.raises(ValueError, match='have no second test set'):
         rc.check_transfer(street, str(tmp_path))
     with pytest.raises(FileNotFoundError, match='give it with'):
         rc.check_transfer(transfer, str(tmp_path / 'none'))
     rc.check_transfer(transfer, str(tmp_path))
+    with pytest.raises(ValueError, match='also the name'):
+        rc.check_transfer(transfer, str(tmp_path), 'real fog')
     other = tmp_path / 'other.json'
     other.write_text(json.dumps(dict(set='coco_street', summary={})))
     with pytest.raises(ValueError, match="not 'realfog_pretrained'"):
@@ -342,7 +353,7 @@ def test_a_run_trained_elsewhere_is_tested_not_trained(
                           resumed_at_iter=1, train_time_extrapolated=True)
     tested = []
 
-    def fake_ap_drop_cfgs(cfg, checkpoint, work_dir, betas, transfer_root):
+    def fake_ap_drop_cfgs(cfg, checkpoint, work_dir, betas, **kwargs):
         return {'coco street': checkpoint}
 
     def fake_ap_drop(cfgs):

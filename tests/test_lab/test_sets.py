@@ -99,6 +99,10 @@ def test_an_unknown_set_names_the_sets():
     (f"recipes = [{GOOD_ROW}]\npreset = 'moon'\n", "unknown preset 'moon'"),
     (f"recipes = [{GOOD_ROW}]\ncolumns = ['box AP', 'box AP99']\n",
      'unknown column'),
+    (f"recipes = [{GOOD_ROW}]\ntransfer_test = dict(condition='fog')\n",
+     "transfer_test needs a non-empty 'data_root'"),
+    (f"recipes = [{GOOD_ROW}]\ntransfer_test = dict(condition='fog', "
+     "data_root='d', seed=1)\n", r"transfer_test: unknown keys \['seed'\]"),
 ])
 def test_malformed_set_files_are_clear_errors(tmp_path, text, match):
     path = write(tmp_path, text)
@@ -113,13 +117,17 @@ def test_a_well_formed_file_reads(tmp_path):
         f"recipes = [{GOOD_ROW},\n"
         "    dict(name='dcp', config='a.py', weights_of='stock'),\n"
         "    dict(name='zs', config='b.py', test_only=True,\n"
-        "         budget=dict(iters_scale=0.5))]\n"))
+        "         budget=dict(iters_scale=0.5))]\n"
+        "transfer_test = dict(condition='fog', data_root='d')\n"))
     spec = sets.load_set('my_set', path)
     assert [r.name for r in spec.recipes] == ['stock', 'dcp', 'zs']
     assert spec.recipe('dcp').weights_of == 'stock'
     assert spec.recipe('zs').test_only and \
         spec.recipe('zs').budget == dict(iters_scale=0.5)
     assert spec.columns[1][0] == 'box AP50' and spec.file == path
+    assert spec.transfer_test == dict(condition='fog', data_root='d')
+    assert sets.load_set('fog_transfer').transfer_test['condition'] == \
+        'real fog'
 
 
 def test_a_malformed_presets_file_is_refused(tmp_path, monkeypatch):

@@ -192,9 +192,9 @@ def parse_args(argv=None):
                         "(default: the preset's); for real-data recipes "
                         "their data (default: the config's)")
     parser.add_argument('--transfer-root',
-                        help="the real-fog VOC folder of recipes with a "
-                        "second test set (transfer_test; default: the "
-                        "preset's, else the configs')")
+                        help="the real-fog VOC folder of the set's second "
+                        "test set (its file's transfer_test; default: the "
+                        "preset's, else the set file's)")
     parser.add_argument('--ceiling', metavar='COMPARE_JSON',
                         help="the in-domain ceiling's record, tabulated "
                         'under the results, never retrained (fog_transfer: '

@@ -2,21 +2,11 @@
 # (compare_recipes.py --set fog_transfer, docs/robustness.md "Synthetic fog
 # to real fog"). A second base next to a coco_street recipe, keys prefixed
 # `transfer_`: the recipes train on the CLEAR COCO street photos
-# (coco-street_instance.py, with their masks: CBNet-DD distils mask logits)
-# and the harness tests each checkpoint twice, on the config's own test set
-# (COCO street val, clear) and on the set named here, real fog: DAWN's fog
-# and haze val photos through cbnet_lab.config_edits.real_fog_cfg (the
-# recipe's own test pipeline, boxes only; DAWN's VOC names read as the
-# project's 8 classes, motorbike -> motorcycle, as the realfog_pretrained
-# set reads them). The split is that of configs/realfog/_base_/
-# voc-fog_box.py (30 % val, seed 0): the same 65 val photos the
-# realfog_pretrained set (the in-domain ceiling) is tested on.
-transfer_test = dict(
-    condition='real fog',
-    data_root='data/dawn_fog/',  # --transfer-root moves it
-    split='val',
-    val_fraction=0.3,
-    split_seed=0)
+# (coco-street_instance.py, with their masks: CBNet-DD distils mask logits);
+# the harness tests each checkpoint on the config's own test set (COCO
+# street val, clear) and on the set's second test set, DAWN's real fog
+# (configs/experiments/fog_transfer.py, its transfer_test).
+
 # Synthetic fog for the clear training photos (CBNetAddFog's row prior, no
 # depth needed): beta drawn per image in Foggy Cityscapes' range, 0.005 to
 # 0.02 1/m (visibility 600 m to 150 m; its three densities are 0.005, 0.01,
