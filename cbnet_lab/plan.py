@@ -12,10 +12,10 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 from cbnet_tools.pretrained import require_pretrained
 
-from .config_edits import Budget, read_config, test_condition
+from .config_edits import Budget, read_config
 from .run_files import check_weights_from, find_trained, result_file
-from .sets import (SET_TRAINED_AS, SETS, Recipe, resolve_recipes,
-                   row_budget, set_rows)
+from .sets import (SET_TRAINED_AS, SETS, Recipe, data_condition,
+                   resolve_recipes, row_budget, set_rows)
 
 
 @dataclass
@@ -36,6 +36,9 @@ class Job:
         betas (list[float]): The fog densities it is tested on.
         out_dir (str): The comparison's work dir.
         cfg_options (dict, optional): Overrides of every config.
+        condition (str, optional): The name of its own test set where
+            that is real data (:func:`reference_condition`; None:
+            Cityscapes-layout clear and foggy val).
         transfer_test (dict, optional): A second test set (its set's
             ``transfer_test``).
         transfer_root (str, optional): Its folder, in place of its
@@ -58,6 +61,7 @@ class Job:
     betas: List[float]
     out_dir: str
     cfg_options: Optional[dict] = None
+    condition: Optional[str] = None
     transfer_test: Optional[dict] = None
     transfer_root: Optional[str] = None
     weights_of: Optional[str] = None
@@ -94,7 +98,8 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
               set_name: Optional[str] = None,
               transfer_root: Optional[str] = None,
               weights_from: Optional[str] = None,
-              weights_of: Optional[Dict[str, str]] = None) -> List[Job]:
+              weights_of: Optional[Dict[str, str]] = None,
+              condition: Optional[str] = None) -> List[Job]:
     """Every run of a comparison, seed-major (a comparison cut short still
     has every recipe at the seeds it finished).
 
@@ -117,6 +122,8 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         weights_of (dict, optional): Test-time variants among the recipes
             without a set row: name -> the recipe whose weights it tests
             (:func:`weights_sources`).
+        condition (str, optional): The name of the recipes' own test set
+            where that is real data (their :func:`reference_condition`).
 
     Returns:
         list[Job]: The runs, in order.
@@ -140,8 +147,8 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     for index, (name, config, seed) in enumerate(pairs, 1):
         row = rows.get(name)
         job = Job(index, len(pairs), name, config, seed, budgets[name],
-                  data_root, list(betas), out_dir, cfg_options, transfer,
-                  transfer_root, weights_of=sources[name],
+                  data_root, list(betas), out_dir, cfg_options, condition,
+                  transfer, transfer_root, weights_of=sources[name],
                   test_only=bool(row and row.test_only))
         if job.test_only:
             job.doing = ('testing the weights its config loads (trains '
@@ -255,17 +262,21 @@ def trained_as(set_name: Optional[str],
 
 def reference_condition(recipes: Sequence[Tuple[str, str]]) -> str:
     """The condition every recipe is tested on first: ``'clear'``, or the
-    ``test_condition`` all the recipes' configs name (real data).
+    name of the real data all the recipes' configs are written for (the
+    condition of their ``data_root``: :func:`cbnet_lab.sets
+    .data_condition`).
 
     Raises:
-        ValueError: The recipes name different conditions.
+        ValueError: The recipes are written for data of different
+            conditions.
     """
-    names = {name: test_condition(read_config(config)) or 'clear'
-             for name, config in recipes}
+    names = {name: data_condition(read_config(config).get('data_root')) or
+             'clear' for name, config in recipes}
     if len(set(names.values())) > 1:
         raise ValueError(
-            'the recipes are tested on different data (test_condition of '
-            f'each: {names}); compare recipes of one kind at a time')
+            'the recipes are tested on different data (the condition of '
+            f'each config\'s data_root: {names}); compare recipes of one '
+            'kind at a time')
     return next(iter(names.values()))
 
 

@@ -49,12 +49,14 @@ trained (``trained_in``, ``trained_as``). A seed with no finished run
 there, or one without its weights (a restored record), is trained here as
 usual.
 
-Real data. When the recipes' configs set ``test_condition = NAME`` (the
-real-fog configs of ``configs/realfog/``, set ``realfog``), ``data_root``
-is that dataset (a VOC folder) and each run is tested on the config's own
-test set under condition ``NAME``, with no foggy betas
-(:func:`cbnet_lab.ap_drop.ap_drop`); every recipe of a
-comparison must then name the same condition.
+Real data. When the recipes' configs are written for real data (their
+``data_root`` a folder of the presets file's ``test_conditions``, which
+names its condition: DAWN's ``'real fog'``, set ``realfog`` and the
+pretrained ones; ``'coco street'``), ``data_root`` is that dataset (a VOC
+folder, or the COCO street split) and each run is tested on the config's
+own test set under that name, with no foggy betas
+(:func:`cbnet_lab.ap_drop.ap_drop`); every recipe of a comparison must
+then be of the same condition.
 """
 import os
 import time
@@ -111,7 +113,7 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         budget (Budget): Training budget of every run.
         data_root (str): Dataset root (Cityscapes layout, with
             ``leftImg8bit_foggy`` for the betas; or the real data of
-            recipes with a ``test_condition``).
+            recipes written for it: :func:`reference_condition`).
         betas (Sequence[float]): Fog densities to test on (none for real
             data).
         out_dir (str): Output folder.
@@ -150,7 +152,8 @@ def compare(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
     # a tabulation (train=False) reads the runs here only
     jobs = plan_jobs(recipes, seeds, budget, data_root, betas, out_dir,
                      cfg_options, set_name, transfer_root,
-                     weights_from if train else None, weights_of)
+                     weights_from if train else None, weights_of,
+                     None if reference == 'clear' else reference)
     if train:  # a tabulation reads no data
         check_inputs(recipes, jobs, reference, data_root, betas,
                      transfer_root)

@@ -25,6 +25,7 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                data_root: str, betas: Sequence[float], out_dir: str,
                cfg_options: Optional[dict] = None,
                weights_of: Optional[str] = None,
+               condition: Optional[str] = None,
                transfer_test: Optional[dict] = None,
                transfer_root: Optional[str] = None,
                trained_in: Optional[str] = None,
@@ -46,6 +47,9 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         cfg_options (dict, optional): Config overrides.
         weights_of (str, optional): Name of the recipe whose weights to
             test (a test-time variant); None trains this recipe.
+        condition (str, optional): The name of the config's own test set
+            where that is real data (tested as it is, no ``betas``); None:
+            clear val, then foggy val per beta.
         transfer_test (dict, optional): A second test set (its set's
             ``transfer_test``), tested after the first.
         transfer_root (str, optional): The folder of ``transfer_test``
@@ -63,7 +67,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         test-only row, which has ``test_only`` and ``weights``; the source
         run's with ``trained_in``, then also ``trained_in``: that run's
         folder and ``trained_as``: its recipe), ``metrics`` (per
-        condition: ``clear``, ``foggy beta=B``, the second test set's).
+        condition: ``clear``, ``foggy beta=B``, or ``condition``; the
+        second test set's).
     """
     from mmengine.runner import Runner
 
@@ -149,7 +154,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             extra = dict(resumed_at_iter=resumed,
                          train_time_extrapolated=True)
     table = ap_drop(ap_drop_cfgs(cfg, checkpoint, osp.join(run_dir, 'test'),
-                                 betas, transfer_test=transfer_test,
+                                 betas, condition=condition,
+                                 transfer_test=transfer_test,
                                  transfer_root=transfer_root))
     result = dict(
         recipe=name, config=config, seed=seed, budget=asdict(budget),
@@ -236,6 +242,7 @@ def execute(job) -> dict:
     return run_recipe(job.name, job.config, job.seed, job.budget,
                       job.data_root, job.betas, job.out_dir,
                       job.cfg_options, weights_of=job.weights_of,
+                      condition=job.condition,
                       transfer_test=job.transfer_test,
                       transfer_root=job.transfer_root,
                       trained_in=job.trained_in, test_only=job.test_only)

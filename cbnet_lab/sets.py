@@ -63,7 +63,7 @@ from mmengine.config import Config
 
 from .config_edits import Budget, configs_root
 from .metric_keys import columns as metric_columns
-from .set_conditions import transfer_test
+from .set_conditions import conditions_by_folder, transfer_test
 from .set_device import (DeviceData, DeviceSpec, data_folder,  # noqa: F401
                          device_data, device_spec, only_keys)
 
@@ -190,17 +190,17 @@ def _plain(cfg: Config) -> dict:
 
 
 def _presets_file(key: str, form: str) -> Tuple[str, dict]:
-    """The presets file and its ``key``, a dict of dicts by ``form``."""
+    """The presets file and its ``key``, a dict of ``form``'s items."""
     path = osp.join(experiments_dir(), PRESETS_FILE)
     value = _plain(Config.fromfile(path)).get(key)
     if not isinstance(value, dict) or not value:
-        raise ValueError(f'{path}: no {key} = dict({form}=dict(...))')
+        raise ValueError(f'{path}: no {key} = dict({form}, ...)')
     return path, value
 
 
 def load_presets() -> Dict[str, Preset]:
     """Every preset of ``configs/experiments/_base_/presets.py``."""
-    path, presets = _presets_file('presets', 'NAME')
+    path, presets = _presets_file('presets', 'NAME=dict(...)')
     out = {}
     for name, spec in presets.items():
         spec = dict(spec)
@@ -223,8 +223,16 @@ def load_device_data() -> Dict[str, DeviceData]:
         ValueError: A malformed entry (its key and what it must be), or a
             preset whose data or transfer folder has no entry.
     """
-    path, spec = _presets_file('device_data', 'FOLDER')
+    path, spec = _presets_file('device_data', 'FOLDER=dict(...)')
     return device_data(path, spec, load_presets())
+
+
+def load_test_conditions() -> Dict[str, str]:
+    """The presets file's ``test_conditions``: a real-data folder's name ->
+    the name its test split is reported under
+    (:func:`cbnet_lab.set_conditions.conditions_by_folder`)."""
+    path, spec = _presets_file('test_conditions', "FOLDER='NAME'")
+    return conditions_by_folder(path, spec)
 
 
 def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
@@ -327,10 +335,24 @@ SET_TRAINED_AS = {name: s.trained_as for name, s in SETS.items()
 #: The presets (``--preset``: ``configs/experiments/_base_/presets.py``).
 PRESETS: Dict[str, Preset] = load_presets()
 
+#: The real-data folders (the presets file's ``test_conditions``): the
+#: folder's name -> the name its test split is reported under.
+TEST_CONDITIONS: Dict[str, str] = load_test_conditions()
+
 #: The preset a set runs with when ``--preset`` is not given (its file's
 #: ``preset``; ``demo`` where it names none).
 SET_PRESETS = {name: s.preset for name, s in SETS.items()
                if s.preset != 'demo'}
+
+
+def data_condition(data_root: Optional[str]) -> Optional[str]:
+    """The name the test split of ``data_root`` is reported under: its
+    folder's entry in :data:`TEST_CONDITIONS` (real data: tested as it
+    is, no foggy betas), None for Cityscapes-layout data (clear val,
+    then foggy val per beta). A recipe's condition is its config's
+    ``data_root``'s, wherever ``--data-root`` moves its data."""
+    return None if not data_root else \
+        TEST_CONDITIONS.get(data_folder(data_root))
 
 
 def resolve_recipes(set_name: Optional[str] = None,

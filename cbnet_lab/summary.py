@@ -29,8 +29,8 @@ PROPOSAL_COLUMNS = metric_columns('AR@100', 'AR@300', 'AR@1000')
 def condition_names(betas: Sequence[float],
                     reference: str = 'clear') -> List[str]:
     """Condition keys of :func:`cbnet_lab.ap_drop.ap_drop`: the reference
-    (clear, or a real-data config's ``test_condition``), then each
-    beta."""
+    (clear, or the real data's condition:
+    :func:`cbnet_lab.plan.reference_condition`), then each beta."""
     return [reference] + [f'foggy beta={b}' for b in betas]
 
 
@@ -82,8 +82,8 @@ def summarize(results: Sequence[dict], betas: Sequence[float],
     Args:
         results (Sequence[dict]): Outputs of :func:`cbnet_lab.run.run_recipe`.
         betas (Sequence[float]): The tested fog densities.
-        reference (str): The first condition (clear, or real data's
-            ``test_condition``), which the drops are taken from.
+        reference (str): The first condition (clear, or the real data's
+            name), which the drops are taken from.
         columns (Sequence[tuple], optional): ``(name, key, scale)`` to
             report before the default ones (a set's
             :data:`cbnet_lab.sets.SET_COLUMNS`).

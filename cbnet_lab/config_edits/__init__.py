@@ -23,9 +23,9 @@ would silently not apply.
 """
 from .reading import configs_root, read_config
 from .testing import (CLEAR_TYPES, FOGGY_TYPE, LOADER_TYPES, PACK_META_KEYS,
-                      ap_drop_cfgs, condition_cfg, corrupted_cfg,
+                      REAL_FOG, ap_drop_cfgs, condition_cfg, corrupted_cfg,
                       default_betas, real_fog_cfg, robustness_cfgs, test_cfg,
-                      test_condition, transfer_cfg)
+                      transfer_cfg)
 from .training import (ITER_CHECKPOINT, Budget, budget_cfg,
                        checkpoint_interval, checkpoint_iter,
                        replace_data_root, resume_file, set_img_scale)
@@ -35,7 +35,7 @@ __all__ = [
     'configs_root', 'read_config', 'Budget', 'budget_cfg',
     'replace_data_root', 'set_img_scale', 'checkpoint_interval',
     'ITER_CHECKPOINT', 'resume_file', 'checkpoint_iter', 'CLEAR_TYPES',
-    'FOGGY_TYPE', 'PACK_META_KEYS', 'LOADER_TYPES', 'test_condition',
+    'FOGGY_TYPE', 'PACK_META_KEYS', 'LOADER_TYPES', 'REAL_FOG',
     'default_betas', 'condition_cfg', 'real_fog_cfg', 'transfer_cfg',
     'corrupted_cfg', 'test_cfg', 'ap_drop_cfgs', 'robustness_cfgs',
     'strip_pretrained', 'load_benchmark_cfg', 'timing_optim_cfg'

@@ -4,13 +4,14 @@ config (:func:`test_cfg`), composed per measurement by
 :func:`ap_drop_cfgs` (the AP drop) and :func:`robustness_cfgs` (the
 corruption benchmark).
 
-Real data. A config that sets ``test_condition = NAME`` (the real-fog
-configs under ``configs/realfog/``: ``'real fog'``) tests real foggy
-photographs, which have no clear twin and no fog density: its test set is
-evaluated as it is, under that name, and foggy betas are an error.
-:func:`real_fog_cfg` turns any detector config of the project into one:
-its model and test pipeline on the val split of a VOC real-fog folder,
-boxes only.
+Real data. Real photographs (DAWN's fog, COCO street's: the data folders
+of the presets file's ``test_conditions``, which names their condition)
+have no clear twin and no fog density: a config's test set is then
+evaluated as it is, under the condition's name (``condition`` of
+:func:`ap_drop_cfgs`), and foggy betas are an error. :func:`real_fog_cfg`
+turns any detector config of the project into one: its model and test
+pipeline on the val split of a VOC real-fog folder, boxes only
+(:data:`REAL_FOG`).
 
 Transfer. Given a second test set, ``dict(condition=NAME,
 data_root=VOC_FOLDER, ...)`` (a set file's ``transfer_test``: the
@@ -37,26 +38,19 @@ PACK_META_KEYS = ('img_id', 'img_path', 'ori_shape', 'img_shape',
 #: name it) and the project's checking one.
 LOADER_TYPES = ('LoadImageFromFile', 'mmcv.LoadImageFromFile',
                 'mmdet.LoadImageFromFile', 'CBNetLoadImageFromFile')
+#: The condition a :func:`real_fog_cfg` test set is reported under.
+REAL_FOG = 'real fog'
 #: Keys a test-only runner does not build.
 TRAINING_KEYS = ('train_dataloader', 'train_cfg', 'optim_wrapper',
                  'param_scheduler', 'val_dataloader', 'val_cfg',
                  'val_evaluator')
 
 
-def test_condition(cfg: Config) -> Optional[str]:
-    """The ``test_condition`` of a real-data config (None: Cityscapes
-    clear / foggy val)."""
-    name = cfg.get('test_condition')
-    if name is not None and (not isinstance(name, str) or not name.strip()):
-        raise ValueError(f'{cfg.filename}: test_condition must be a '
-                         f'non-empty name, got {name!r}')
-    return name
-
-
-def default_betas(cfg: Config,
+def default_betas(condition: Optional[str],
                   betas: Sequence[float] = (0.02, )) -> List[float]:
-    """``betas`` for a Cityscapes config, none for a real-data one."""
-    return [] if test_condition(cfg) else list(betas)
+    """``betas`` for Cityscapes-layout data (``condition`` None), none for
+    real data (the name of its condition)."""
+    return [] if condition else list(betas)
 
 
 def condition_cfg(cfg: Config, beta: Optional[float] = None) -> Config:
@@ -95,8 +89,8 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     config's own test pipeline, with masks no longer loaded and the ground
     truth passed on for ``CocoMetric`` (``'instances'`` in
     ``PackDetInputs``' ``meta_keys``); the evaluator becomes box AP
-    (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored);
-    ``test_condition`` is ``'real fog'``.
+    (``CocoMetric``, ``metric='bbox'``: a mask head's masks are ignored).
+    It is reported under :data:`REAL_FOG`.
 
     Args:
         cfg (Config): A detector config of the project (CBNet, CBNet-DD,
@@ -130,7 +124,6 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
     dataset.update(dataset_kwargs)
     cfg.test_dataloader.dataset = dataset
     cfg.test_evaluator = [dict(type='CocoMetric', metric='bbox')]
-    cfg.test_condition = 'real fog'
     return cfg
 
 
@@ -148,8 +141,8 @@ def transfer_cfg(cfg: Config, spec: dict,
             ``spec['data_root']``.
 
     Returns:
-        Config: :func:`real_fog_cfg` of ``cfg`` on that folder, its
-        ``test_condition`` the transfer condition's name.
+        Config: :func:`real_fog_cfg` of ``cfg`` on that folder (reported
+        under ``spec['condition']``).
     """
     spec = dict(spec)
     name, root = spec.pop('condition'), spec.pop('data_root')
@@ -159,9 +152,7 @@ def transfer_cfg(cfg: Config, spec: dict,
             f'the transfer test set {name!r} ({cfg.filename}) is the VOC '
             f'folder {root}, which does not exist; give its folder '
             '(compare_recipes.py --transfer-root DIR)')
-    out = real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
-    out.test_condition = name
-    return out
+    return real_fog_cfg(cfg, root, split=spec.pop('split', 'val'), **spec)
 
 
 def corrupted_cfg(cfg: Config, corruption: str, severity: int) -> Config:
@@ -239,21 +230,24 @@ def _folder(condition: str) -> str:
 
 def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
                  betas: Sequence[float] = (0.02, ),
+                 condition: Optional[str] = None,
                  transfer_test: Optional[dict] = None,
                  transfer_root: Optional[str] = None) -> Dict[str, Config]:
     """The test configs of the AP drop, by condition, in order.
 
-    Clear val, then foggy val for each beta; a config with
-    ``test_condition = NAME`` (real data) is tested on its own test set
-    only, as condition ``NAME``; with ``transfer_test`` it is then also
-    tested on that set (last condition).
+    Clear val, then foggy val for each beta; real data (``condition``) is
+    tested on the config's own test set only, under that name; with
+    ``transfer_test`` the config is then also tested on that set (last
+    condition).
 
     Args:
         cfg (Config): Test config.
         checkpoint (str): Checkpoint file.
         work_dir (str): Output folder of the runs.
-        betas (Sequence[float]): Fog densities, 1/m (none for a config with
-            ``test_condition``).
+        betas (Sequence[float]): Fog densities, 1/m (none for real data).
+        condition (str, optional): The name of the config's own test set
+            where it is real data (:func:`cbnet_lab.sets.data_condition`);
+            None: Cityscapes-layout clear and foggy val.
         transfer_test (dict, optional): A second test set (a set file's
             ``transfer_test``: :func:`transfer_cfg`).
         transfer_root (str, optional): The folder of ``transfer_test``, in
@@ -266,14 +260,14 @@ def ap_drop_cfgs(cfg: Config, checkpoint: str, work_dir: str,
         ValueError: Foggy betas for real data, or a second test set named
             as a condition of the first.
     """
-    real = test_condition(cfg)
-    if real and betas:
+    if condition and betas:
         raise ValueError(
-            f'{cfg.filename}: test_condition={real!r} tests real data, '
-            'which has no synthetic-fog twin; give no foggy betas '
-            f'(got {list(betas)})')
-    conditions = {real: cfg} if real else {'clear': condition_cfg(cfg)}
-    folders = {real: _folder(real)} if real else {'clear': 'clear'}
+            f'{cfg.filename}: it tests real data ({condition!r}), which has '
+            f'no synthetic-fog twin; give no foggy betas (got {list(betas)})')
+    conditions = {condition: cfg} if condition else \
+        {'clear': condition_cfg(cfg)}
+    folders = {condition: _folder(condition)} if condition else \
+        {'clear': 'clear'}
     for beta in betas:
         conditions[f'foggy beta={beta}'] = condition_cfg(cfg, beta)
         folders[f'foggy beta={beta}'] = f'foggy_beta_{beta}'

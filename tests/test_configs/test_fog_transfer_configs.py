@@ -140,8 +140,8 @@ def test_builds_without_weights_and_tests_on_real_fog(name, path,
     # pipeline, boxes only
     fog = transfer_cfg(cfg, TRANSFER, str(tmp_path))
     dataset = fog.test_dataloader.dataset
-    assert (fog.test_condition, dataset.type, dataset.data_root,
-            dataset.split, dataset.val_fraction, dataset.split_seed) == \
-        ('real fog', 'CBNetVOCFogDataset', str(tmp_path), 'val', 0.3, 0)
+    assert (dataset.type, dataset.data_root, dataset.split,
+            dataset.val_fraction, dataset.split_seed) == \
+        ('CBNetVOCFogDataset', str(tmp_path), 'val', 0.3, 0)
     assert fog.test_evaluator == [dict(type='CocoMetric', metric='bbox')]
     assert dataset.pipeline[2] == cfg.test_dataloader.dataset.pipeline[2]

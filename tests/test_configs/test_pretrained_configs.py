@@ -14,6 +14,7 @@ from mmengine.registry import init_default_scope
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab.sets import data_condition
 from cbnet_tools import pretrained as pt
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
@@ -93,7 +94,7 @@ def test_equal_trunk_widths_optimiser_and_data(recipes):
         # the ImageNet normalisation the weights were trained with, RGB
         assert pre.mean == [123.675, 116.28, 103.53] and pre.bgr_to_rgb
     data = {n: (c.train_dataloader, c.test_dataloader, c.test_evaluator,
-                c.test_condition) for n, c in cfgs.items()
+                data_condition(c.data_root)) for n, c in cfgs.items()
             if 'fixed_img_scale' not in c}
     assert len({repr(d) for d in data.values()}) == 1
 
@@ -152,14 +153,14 @@ def test_the_heads_of_each_recipe():
 
 def test_data_of_the_two_sets():
     street = ce.read_config(STREET['CBNet'])
-    assert street.test_condition == 'coco street'
+    assert data_condition(street.data_root) == 'coco street'
     assert street.train_dataloader.dataset.type == 'CBNetCityscapesDataset'
     assert street.train_dataloader.dataset.pipeline[0].type == \
         'CBNetLoadImageFromFile'
     assert [e.type for e in street.test_evaluator] == [
         'CocoMetric', 'CBNetInstanceMIoUMetric']
     fog = ce.read_config(FOG['CBNet'])
-    assert fog.test_condition == 'real fog'
+    assert data_condition(fog.data_root) == 'real fog'
     ds = fog.test_dataloader.dataset
     assert (ds.type, ds.split, ds.val_fraction, ds.split_seed) == (
         'CBNetVOCFogDataset', 'val', 0.3, 0)

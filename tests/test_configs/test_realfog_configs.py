@@ -8,6 +8,7 @@ import pytest
 
 from cbnet_lab.config_edits import read_config
 from cbnet_lab import recipe_comparison as rc
+from cbnet_lab.sets import data_condition
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
@@ -28,7 +29,7 @@ def test_every_recipe_config_of_the_folder_is_in_the_set():
 @pytest.mark.parametrize('name', sorted(RECIPES))
 def test_recipe_is_box_only_on_the_real_fog_splits(name):
     cfg, demo = read_config(RECIPES[name]), read_config(DEMO)
-    assert cfg.test_condition == 'real fog'
+    assert data_condition(cfg.data_root) == 'real fog'
     train = cfg.train_dataloader.dataset
     test = cfg.test_dataloader.dataset
     for ds, split in ((train, 'train'), (test, 'val')):

@@ -17,7 +17,6 @@ from mmengine.runner import Runner
 from set_helpers import ROOT, fake_coco, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
-from cbnet_lab import ap_drop as ad
 from cbnet_lab import config_edits as ce
 from cbnet_lab import plan
 from cbnet_lab import recipe_comparison as rc
@@ -68,21 +67,21 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,
         'dehazers.py')).fog_dehazer_checkpoint)
     save_untrained_dehazer(dehazer_file)
     trained, tested = [], []
-    train, evaluate = Runner.train, ad.evaluate
+    train, test = Runner.train, lab_run.ap_drop
 
     def spy_train(runner):
         trained.append(osp.relpath(runner.work_dir, tmp_path / 'runs'))
         return train(runner)
 
-    def spy_evaluate(cfg):
-        tested.append((osp.relpath(cfg.work_dir, tmp_path / 'runs'),
-                       osp.relpath(cfg.load_from, tmp_path / 'runs'),
-                       cfg.test_condition,
-                       cfg.model.data_preprocessor.type))
-        return evaluate(cfg)
+    def spy_test(cfgs):  # each run's test configs, by condition
+        for condition, cfg in cfgs.items():
+            tested.append((osp.relpath(cfg.work_dir, tmp_path / 'runs'),
+                           osp.relpath(cfg.load_from, tmp_path / 'runs'),
+                           condition, cfg.model.data_preprocessor.type))
+        return test(cfgs)
 
     monkeypatch.setattr(Runner, 'train', spy_train)
-    monkeypatch.setattr(ad, 'evaluate', spy_evaluate)
+    monkeypatch.setattr(lab_run, 'ap_drop', spy_test)
     tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'fog_transfer', '--data-root', street,
             '--transfer-root', fog, '--work-dir', str(tmp_path / 'runs'),
@@ -245,8 +244,9 @@ def test_transfer_test_is_checked(tmp_path):
         ce.transfer_cfg(cfg, spec)
     assert ce.transfer_cfg(cfg, spec, str(tmp_path)).test_dataloader \
         .dataset.data_root == str(tmp_path)
-    assert ce.transfer_cfg(cfg, spec, str(tmp_path)).test_condition == \
-        'real fog'
+    with pytest.raises(ValueError, match='named as a condition'):
+        ce.ap_drop_cfgs(cfg, 'x.pth', str(tmp_path), [], 'real fog', spec,
+                        str(tmp_path))
     # a set file's transfer_test, read
     for bad, match in (
             (dict(data_root='d'), "non-empty 'condition'"),

@@ -1,6 +1,7 @@
 """Real fog: box evaluation of a checkpoint on a VOC folder (AP-drop tool,
-``test_condition``), the harness's real-data conditions, and the
-``realfog`` set end to end on a tiny generated VOC folder."""
+the condition of the folder a config is written for), the harness's
+real-data conditions, and the ``realfog`` set end to end on a tiny
+generated VOC folder."""
 import glob
 import json
 import os.path as osp
@@ -19,6 +20,7 @@ from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import report
 from cbnet_lab.ap_drop import ap_drop, with_empty_coco_results
+from cbnet_lab.sets import data_condition
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 REALFOG = osp.join(ROOT, 'configs', 'realfog')
@@ -68,16 +70,22 @@ def val_classes(fog_root):
 def test_real_fog_config_scores_an_oracle_100(fog_root, tmp_path):
     """The realfog CBNet config's val split, scored by CocoMetric from the
     dataset's own ground truth: every box predicted -> AP 100."""
-    cfg, ckpt = oracle_cfg(Config.fromfile(osp.join(
-        REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py')),
-        fog_root, tmp_path)
-    assert ce.default_betas(cfg) == []
-    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'all'), []))
+    cfg = Config.fromfile(osp.join(
+        REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py'))
+    # written for DAWN's folder: real fog, whatever folder it tests
+    real = data_condition(cfg.data_root)
+    assert real == 'real fog' and ce.default_betas(real) == []
+    assert ce.default_betas(data_condition(Config.fromfile(
+        DATASET_CFG).data_root)) == [0.02]
+    cfg, ckpt = oracle_cfg(cfg, fog_root, tmp_path)
+    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'all'), [],
+                                    condition=real))
     assert list(table['metrics']) == ['real fog']
     assert table['rows'][0]['box AP'] == pytest.approx(100.0)
     assert table['rows'][0]['mask AP'] is None  # boxes only
     with pytest.raises(ValueError, match='no synthetic-fog twin'):
-        ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'x'), [0.02])
+        ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'x'), [0.02],
+                        condition=real)
 
 
 def test_ap_drop_tool_tests_any_config_on_real_fog(fog_root, tmp_path):
@@ -123,7 +131,8 @@ def test_a_model_that_detects_nothing_scores_0_not_missing(tmp_path):
     cfg, ckpt = oracle_cfg(Config.fromfile(osp.join(
         REALFOG, 'cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py')),
         root, tmp_path, drop_class=car)
-    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'none'), []))
+    table = ap_drop(ce.ap_drop_cfgs(cfg, ckpt, str(tmp_path / 'none'), [],
+                                    condition=ce.REAL_FOG))
     assert table['metrics']['real fog'] == {
         'coco/bbox_mAP': 0.0, 'coco/bbox_mAP_50': 0.0,
         'coco/bbox_mAP_75': 0.0}

@@ -130,6 +130,34 @@ def test_a_well_formed_file_reads(tmp_path):
         'real fog'
 
 
+def test_real_data_is_named_by_its_folder():
+    """The presets file's test_conditions: the condition a recipe written
+    for a real-data folder is tested under, wherever its data is moved."""
+    assert sets.TEST_CONDITIONS == sets.load_test_conditions() == dict(
+        dawn_fog='real fog', coco_street='coco street')
+    assert sets.data_condition('data/dawn_fog/') == 'real fog'
+    assert sets.data_condition('/elsewhere/coco_street') == 'coco street'
+    for root in ('data/cityscapes_like/', 'data/dawn_fog_val', None):
+        assert sets.data_condition(root) is None
+
+
+@pytest.mark.parametrize('spec,match', [
+    ("dict(dawn_fog='')", 'non-empty name'),
+    ("dict(dawn_fog='clear')", "other than the Cityscapes-layout data's"),
+    ("{'data/dawn_fog': 'real fog'}", "must be a data folder's name"),
+    ("dict(x='foggy beta=0.02')", 'Cityscapes-layout'),
+])
+def test_malformed_test_conditions_are_clear_errors(tmp_path, monkeypatch,
+                                                    spec, match):
+    (tmp_path / '_base_').mkdir()
+    (tmp_path / '_base_' / 'presets.py').write_text(
+        f'test_conditions = {spec}\n')
+    monkeypatch.setattr(sets, 'experiments_dir', lambda: str(tmp_path))
+    with pytest.raises(ValueError, match=match) as err:
+        sets.load_test_conditions()
+    assert 'presets.py: test_conditions' in str(err.value)
+
+
 def test_a_malformed_presets_file_is_refused(tmp_path, monkeypatch):
     (tmp_path / '_base_').mkdir()
     (tmp_path / '_base_' / 'presets.py').write_text(

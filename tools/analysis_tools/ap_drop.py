@@ -21,10 +21,12 @@ ignored; no betas), e.g. DAWN's fog photos or RTTS (PNG images)::
         --real-fog data/rtts --cfg-options \
         test_dataloader.dataset.img_suffix=.png
 
-A real-data config (``test_condition = NAME``, the box-only recipes of
-``configs/realfog/``) is tested on its own test set only (no betas); a
-single condition has no reference to drop from, so its table has no drop
-columns.
+A config written for real data (its ``data_root`` a folder of
+``test_conditions`` in ``configs/experiments/_base_/presets.py``, which
+names the condition: DAWN's ``real fog``, the box-only recipes of
+``configs/realfog/``; ``coco street``) is tested on its own test set only
+(no betas); a single condition has no reference to drop from, so its table
+has no drop columns.
 
 Quick evaluation. ``--num-images N`` tests the first N images of each
 condition, scored against their own ground truth only (the cut annotation
@@ -39,7 +41,9 @@ from mmengine.config import Config, DictAction
 
 import cbnet_mmdet  # noqa: F401  (registers the components)
 from cbnet_lab.ap_drop import ap_drop, to_markdown
-from cbnet_lab.config_edits import ap_drop_cfgs, default_betas, real_fog_cfg
+from cbnet_lab.config_edits import (REAL_FOG, ap_drop_cfgs, default_betas,
+                                    real_fog_cfg)
+from cbnet_lab.sets import data_condition
 from cbnet_tools.quick_eval import first_images_cfg
 
 
@@ -66,8 +70,10 @@ def parse_args(argv=None):
 def main(argv=None):
     args = parse_args(argv)
     cfg = Config.fromfile(args.config)
+    # real data, by the folder the config is written for (or --real-fog's)
+    condition = data_condition(cfg.get('data_root'))
     if args.real_fog:
-        cfg = real_fog_cfg(cfg, args.real_fog)
+        cfg, condition = real_fog_cfg(cfg, args.real_fog), REAL_FOG
     if args.cfg_options:
         cfg.merge_from_dict(args.cfg_options)
     os.makedirs(args.out_dir, exist_ok=True)
@@ -75,8 +81,9 @@ def main(argv=None):
         cfg = first_images_cfg(
             cfg, args.num_images,
             osp.join(args.out_dir, f'first_{args.num_images}_images'))
-    betas = default_betas(cfg) if args.betas is None else args.betas
-    table = ap_drop(ap_drop_cfgs(cfg, args.checkpoint, args.out_dir, betas))
+    betas = default_betas(condition) if args.betas is None else args.betas
+    table = ap_drop(ap_drop_cfgs(cfg, args.checkpoint, args.out_dir, betas,
+                                 condition=condition))
     md = to_markdown(table)
     print(md)
     with open(osp.join(args.out_dir, 'ap_drop.md'), 'w') as f:

@@ -100,9 +100,11 @@ back, a run cut short resumes from its checkpoint (its record says
 ``resumed_at_iter``). Start one command per work dir (it runs every run
 of it itself; --no-wait and the runs' lock files are gone).
 
-Recipes whose configs set ``test_condition`` (real data, like the realfog
-set) take ``--data-root`` as their data (default: the config's) and are
-tested on their own test set only: no ``--betas``.
+Recipes written for real data (a config whose data_root is a folder of
+``test_conditions`` in configs/experiments/_base_/presets.py, which names
+its condition: DAWN's real fog, like the realfog set, or COCO street) take
+``--data-root`` as their data (default: the config's) and are tested on
+their own test set only: no ``--betas``.
 
 Examples::
 
@@ -296,9 +298,10 @@ def parse_args(argv=None):
 
 
 def data_and_betas(args, recipes) -> tuple:
-    """``--data-root`` and ``--betas``, or their defaults: real-data
-    recipes (configs with ``test_condition``) test their config's data and
-    no betas; the others the preset's data root and three betas."""
+    """``--data-root`` and ``--betas``, or their defaults: recipes written
+    for real data (:func:`cbnet_lab.plan.reference_condition`) test their
+    config's data and no betas; the others the preset's data root and
+    three betas."""
     from cbnet_lab import recipe_comparison as rc
     from cbnet_lab.config_edits import read_config
     real = rc.reference_condition(recipes) != 'clear'

@@ -47,6 +47,15 @@ presets = dict(
     realfog_200it=dict(data_root='data/dawn_fog', iters=200, batch_size=4,
                        warmup_iters=10),
 )
+# Real data: the name the test split of a data folder is reported under
+# (the records' condition, which keys their metrics), by the folder's name
+# (a data_root's last folder, as device_data below). A recipe whose
+# config's data_root is such a folder (wherever --data-root moves it: the
+# realfog recipes on RTTS are real fog too) is tested on its own test set
+# as it is, with no synthetic fog densities (compare_recipes.py,
+# ap_drop.py); any other recipe tests Cityscapes-layout data: clear val,
+# then foggy val per beta.
+test_conditions = dict(dawn_fog='real fog', coco_street='coco street')
 # What the lent GPU machine (tools/device/run_all.py) does with each data
 # folder a preset names (its data_root's or transfer_root's last folder,
 # the folder of that name under run_all.py --data, data/device/): `make`,

@@ -8,6 +8,9 @@
 # Every key is prefixed `fog_` so that this file can be a second base next
 # to a detector config, which defines the plain names; the recipe configs
 # copy them over (see cbnet_mit-b0_nasfpn-box_1xb4-demo_voc-fog.py).
+# real data: the harness tests this folder's val split as it is, as 'real
+# fog', no synthetic fog densities (configs/experiments/_base_/presets.py,
+# test_conditions)
 fog_data_root = 'data/dawn_fog/'
 # (w, h) of the resized images: DAWN's photos are mostly 1280 wide,
 # 530-960 high; a fifth of 1280 keeps the CPU runs at minutes
@@ -62,6 +65,3 @@ fog_test_dataloader = dict(
         test_mode=True,
         pipeline=fog_test_pipeline))
 fog_evaluator = [dict(type='CocoMetric', metric='bbox')]
-# real data: the harness and the AP-drop tool test the test set as it is,
-# under this name, with no synthetic fog densities
-test_condition = 'real fog'

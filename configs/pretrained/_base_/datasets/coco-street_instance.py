@@ -4,6 +4,9 @@
 # holds a street object; docs/accuracy.md "Real masks"). Keys prefixed
 # `street_` so that this file is a second base next to a recipe; the
 # recipe configs copy them over.
+# real photographs: the harness tests this folder's val split as it is, as
+# 'coco street', no synthetic fog densities (configs/experiments/_base_/
+# presets.py, test_conditions)
 street_data_root = 'data/coco_street/'
 street_img_scale = (640, 480)  # (w, h): COCO's 640-px photos as they are
 street_train_ann = 'annotations/instances_train.json'
@@ -63,6 +66,3 @@ street_evaluator = [
          ann_file=street_data_root + street_val_ann, score_thr=0.1,
          paint_order='score'),
 ]
-# real photographs: the harness tests the val split as it is, under this
-# name, with no synthetic fog densities
-test_condition = 'coco street'
