@@ -47,6 +47,8 @@ class Job:
             seed it tests (trains nothing; runs after that one).
         test_only (bool): Trains nothing: tests the weights its config
             loads.
+        keep_img_scale (bool): Its config's ``Resize`` sizes stay (its row
+            says so), the budget's ``img_scale`` does not apply.
         trained_in (str, optional): The ``result.json`` of the run of
             another set that trained it (trains nothing).
         doing (str): What it does, for the log.
@@ -66,6 +68,7 @@ class Job:
     transfer_root: Optional[str] = None
     weights_of: Optional[str] = None
     test_only: bool = False
+    keep_img_scale: bool = False
     trained_in: Optional[str] = None
     doing: str = 'training'
 
@@ -149,7 +152,8 @@ def plan_jobs(recipes: Sequence[Tuple[str, str]], seeds: Sequence[int],
         job = Job(index, len(pairs), name, config, seed, budgets[name],
                   data_root, list(betas), out_dir, cfg_options, condition,
                   transfer, transfer_root, weights_of=sources[name],
-                  test_only=bool(row and row.test_only))
+                  test_only=bool(row and row.test_only),
+                  keep_img_scale=bool(row and row.keep_img_scale))
         if job.test_only:
             job.doing = ('testing the weights its config loads (trains '
                          'nothing)')

@@ -29,7 +29,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
                transfer_test: Optional[dict] = None,
                transfer_root: Optional[str] = None,
                trained_in: Optional[str] = None,
-               test_only: bool = False) -> dict:
+               test_only: bool = False,
+               keep_img_scale: bool = False) -> dict:
     """Train one recipe with one seed and test it on clear and foggy val.
 
     Finished runs are read back from their ``result.json``. With
@@ -60,6 +61,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
             linked here and tested, nothing is trained.
         test_only (bool): Train nothing: test the weights the config loads
             (``load_from``: a pretrained detector, zero-shot).
+        keep_img_scale (bool): Keep the config's ``Resize`` sizes, not the
+            budget's ``img_scale`` (its input size is part of the model).
 
     Returns:
         dict: ``recipe``, ``config``, ``seed``, ``train_time_s`` (None for
@@ -78,7 +81,8 @@ def run_recipe(name: str, config: str, seed: int, budget: Budget,
         return read_result(path, budget, cfg_options)
     stamp = time.strftime('%Y%m%d_%H%M%S')
     cfg = budget_cfg(config, budget, seed, data_root, run_dir, cfg_options,
-                     experiment_name=f'{slug(name)}_seed{seed}_{stamp}')
+                     experiment_name=f'{slug(name)}_seed{seed}_{stamp}',
+                     keep_img_scale=keep_img_scale)
     extra = {}
     if test_only:
         checkpoint = cfg.get('load_from')
@@ -245,4 +249,5 @@ def execute(job) -> dict:
                       condition=job.condition,
                       transfer_test=job.transfer_test,
                       transfer_root=job.transfer_root,
-                      trained_in=job.trained_in, test_only=job.test_only)
+                      trained_in=job.trained_in, test_only=job.test_only,
+                      keep_img_scale=job.keep_img_scale)

@@ -22,6 +22,9 @@ another set's::
         # other key: a Budget field, set as it is)
         dict(name='..., 24 epochs', config='...',
              budget=dict(iters_scale=2)),
+        # its input size is part of the model: its config's Resize sizes
+        # stay, the preset's img_scale does not apply
+        dict(name='edge, 320 px', config='...', keep_img_scale=True),
     ]
     # every run also tested on a VOC real-fog folder's val split, under
     # this condition (--transfer-root, or the preset's, moves it)
@@ -72,7 +75,8 @@ EXPERIMENTS = 'experiments'
 #: The presets file, under :data:`EXPERIMENTS`.
 PRESETS_FILE = osp.join('_base_', 'presets.py')
 #: The keys a row may have.
-ROW_KEYS = ('name', 'config', 'weights_of', 'test_only', 'budget')
+ROW_KEYS = ('name', 'config', 'weights_of', 'test_only', 'budget',
+            'keep_img_scale')
 #: The keys a set file may have.
 SET_KEYS = ('preset', 'columns', 'recipes', 'transfer_test', 'ceiling',
             'trained_as', 'device')
@@ -123,12 +127,16 @@ class Recipe:
         budget (dict): This row's budget over the set's:
             ``iters_scale`` multiplies the set's iterations (``2``: twice
             the epochs), other keys are ``Budget`` fields.
+        keep_img_scale (bool): Its input size is part of the model (the
+            edge model): every ``Resize`` keeps its config's size, the
+            budget's ``img_scale`` does not apply.
     """
     name: str
     config: str
     weights_of: Optional[str] = None
     test_only: bool = False
     budget: Dict = field(default_factory=dict)
+    keep_img_scale: bool = False
 
 
 @dataclass
@@ -242,8 +250,9 @@ def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
         KeyError: No such set.
         ValueError: A malformed file: an unknown key, a row without a name
             or config, a name given twice, a ``weights_of`` that names no
-            earlier row, an unknown preset or column, a malformed
-            ``transfer_test`` or ``device``.
+            earlier row, a ``keep_img_scale`` that is not True or False,
+            an unknown preset or column, a malformed ``transfer_test`` or
+            ``device``.
     """
     if path is None:
         files = set_files()
@@ -271,6 +280,10 @@ def load_set(name: str, path: Optional[str] = None) -> ExperimentSet:
         if of is not None and of not in seen:
             raise ValueError(f'{path}: recipe {row["name"]!r} tests the '
                              f'weights of {of!r}, which is no earlier row')
+        if not isinstance(row.get('keep_img_scale', False), bool):
+            raise ValueError(f'{path}: recipe {row["name"]!r}: '
+                             'keep_img_scale must be True or False, got '
+                             f'{row["keep_img_scale"]!r}')
         seen.append(row['name'])
         budget = dict(row.get('budget') or {})
         recipes.append(Recipe(**dict(row, budget=budget)))

@@ -29,9 +29,9 @@ class Budget:
         num_workers (int): Data-loading workers.
         img_scale (tuple[int, int], optional): ``(w, h)`` given to every
             ``Resize`` of the training and test pipelines (the data
-            preset's image size); None keeps each config's. A config whose
-            input size is part of the model (the edge model) sets a
-            top-level ``fixed_img_scale`` and keeps it (:func:`budget_cfg`).
+            preset's image size); None keeps each config's. A recipe whose
+            input size is part of the model (the edge model) keeps its own
+            (``keep_img_scale`` of :func:`budget_cfg`, its set row's).
     """
     iters: int = 120
     batch_size: int = 4
@@ -131,7 +131,8 @@ def set_img_scale(cfg: Config, img_scale: Tuple[int, int]) -> int:
 
 def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
                work_dir: str, cfg_options: Optional[dict] = None,
-               experiment_name: Optional[str] = None) -> Config:
+               experiment_name: Optional[str] = None,
+               keep_img_scale: bool = False) -> Config:
     """The config of one run: ``config`` under ``budget`` and ``seed``.
 
     The training loop becomes iteration-based (``budget.iters``), the lr
@@ -150,6 +151,9 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
         cfg_options (dict, optional): Overrides applied last.
         experiment_name (str, optional): MMEngine's name of the run (its
             log folder's), kept by the run's tests as their prefix.
+        keep_img_scale (bool): Keep the config's ``Resize`` sizes (its
+            input size is part of the model: the edge model), not
+            ``budget.img_scale``.
 
     Returns:
         Config: The run's config.
@@ -189,14 +193,10 @@ def budget_cfg(config: str, budget: Budget, seed: int, data_root: str,
     cfg.randomness = dict(seed=seed)
     cfg.work_dir = work_dir
     cfg.auto_scale_lr = dict(enable=False, base_batch_size=16)
-    # a config that fixes its own input size (``fixed_img_scale``, e.g. the
-    # edge model of configs/pretrained/) keeps it under any preset; it is
-    # applied to every Resize, so a pipeline that disagrees with it cannot
-    # slip through
-    fixed = cfg.get('fixed_img_scale')
-    if fixed is not None:
-        set_img_scale(cfg, fixed)
-    elif budget.img_scale is not None:
+    # a recipe whose input size is part of the model (its set row's
+    # keep_img_scale: the edge model of configs/pretrained/) keeps its
+    # config's under any preset
+    if budget.img_scale is not None and not keep_img_scale:
         set_img_scale(cfg, budget.img_scale)
     if cfg_options:
         cfg.merge_from_dict(cfg_options)

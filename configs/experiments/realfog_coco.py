@@ -20,8 +20,10 @@ recipes = [
     dict(name='YOLOX-Nano COCO, fine-tuned, fresh classifier',
          config='yolox_coco/'
          'yolox_nano_coco-ft-fresh-cls_1xb4-12e_dawn-fog.py'),
+    # the config's 416x312 (YOLOX-Nano's own COCO size), not the preset's
     dict(name='YOLOX-Nano COCO, fine-tuned, 416 px',
-         config='yolox_coco/yolox_nano_coco-ft_1xb4-12e_dawn-fog-416.py'),
+         config='yolox_coco/yolox_nano_coco-ft_1xb4-12e_dawn-fog-416.py',
+         keep_img_scale=True),
     dict(name='YOLOX-Nano COCO, fine-tuned, no EMA',
          config='yolox_coco/yolox_nano_coco-ft-no-ema_1xb4-12e_dawn-fog.py'),
     dict(name='YOLOX-Nano COCO, fine-tuned, batch norms trained',

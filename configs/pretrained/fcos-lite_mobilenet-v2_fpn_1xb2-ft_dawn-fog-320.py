@@ -7,17 +7,17 @@
 _base_ = './fcos-lite_mobilenet-v2_fpn_1xb2-ft_dawn-fog.py'
 
 # (w, h), keep_ratio: fits inside. The comparison harness gives every other
-# recipe its preset's size (640x480); a config with `fixed_img_scale`
-# keeps this one (cbnet_lab/config_edits/training.py, budget_cfg), as its
-# input size is part of the model.
-fixed_img_scale = (320, 240)
+# recipe its preset's size (640x480); this one's row keeps this one
+# (keep_img_scale, configs/experiments/realfog_pretrained.py), as its input
+# size is part of the model.
+fog_img_scale = (320, 240)
 train_dataloader = dict(
     dataset=dict(pipeline=[
-        dict(t, scale=fixed_img_scale) if t['type'] == 'Resize' else t
+        dict(t, scale=fog_img_scale) if t['type'] == 'Resize' else t
         for t in _base_.train_dataloader.dataset.pipeline
     ]))
 val_dataloader = test_dataloader = dict(
     dataset=dict(pipeline=[
-        dict(t, scale=fixed_img_scale) if t['type'] == 'Resize' else t
+        dict(t, scale=fog_img_scale) if t['type'] == 'Resize' else t
         for t in _base_.test_dataloader.dataset.pipeline
     ]))

@@ -93,9 +93,14 @@ def test_equal_trunk_widths_optimiser_and_data(recipes):
         pre = cfg.model.data_preprocessor
         # the ImageNet normalisation the weights were trained with, RGB
         assert pre.mean == [123.675, 116.28, 103.53] and pre.bgr_to_rgb
+    # the edge model keeps its own input size (its row says so)
+    keeps = {r.name for r in rc.SETS[
+        'realfog_pretrained' if recipes is FOG else 'coco_street'].recipes
+        if r.keep_img_scale}
+    assert keeps == ({'Edge FCOS-lite, 320 px'} if recipes is FOG else set())
     data = {n: (c.train_dataloader, c.test_dataloader, c.test_evaluator,
                 data_condition(c.data_root)) for n, c in cfgs.items()
-            if 'fixed_img_scale' not in c}
+            if n not in keeps}
     assert len({repr(d) for d in data.values()}) == 1
 
 
@@ -258,8 +263,11 @@ def test_edge_model_keeps_its_input_size_under_the_preset(tmp_path):
                        img_scale=preset.img_scale)
     sizes = {}
     for path in (EDGE, EDGE_640):
+        row = next(r for r in rc.SETS['realfog_pretrained'].recipes
+                   if osp.join(ce.configs_root(), r.config) == path)
         cfg = ce.budget_cfg(path, budget, seed=0, data_root='/d',
-                            work_dir=str(tmp_path))
+                            work_dir=str(tmp_path),
+                            keep_img_scale=row.keep_img_scale)
         sizes[osp.basename(path)] = {
             tuple(t.scale) for loader in (cfg.train_dataloader,
                                           cfg.test_dataloader)

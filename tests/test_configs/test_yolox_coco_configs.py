@@ -98,7 +98,8 @@ def test_variants_change_only_what_their_names_say():
         base_resize = [t for t in base.train_dataloader.dataset.pipeline
                        if t['type'] == 'Resize'][0]
         if '416 px' in name:
-            assert tuple(cfg.fixed_img_scale) == (416, 312)
+            assert tuple(resize['scale']) == (416, 312)
+            assert rc.SETS['realfog_coco'].recipe(name).keep_img_scale
         else:
             assert resize == base_resize
         assert cfg.optim_wrapper == base.optim_wrapper

@@ -149,18 +149,18 @@ def test_a_recipes_own_load_from_is_kept_until_the_run_resumes(tmp_path):
     assert cfg.resume is True
 
 
-def test_a_config_with_fixed_img_scale_keeps_it(tmp_path):
-    """The edge model's input size is part of the model: a config with a
-    top-level ``fixed_img_scale`` keeps it under a preset's size, and a
-    pipeline that disagrees with it is brought in line."""
+def test_keep_img_scale_keeps_the_configs_sizes(tmp_path):
+    """The edge model's input size is part of the model: with its row's
+    ``keep_img_scale`` every Resize keeps its config's size under a
+    preset's."""
     recipe = osp.join(ROOT, 'configs', 'demo',
                       'cbnet_mit-b0_nasfpn_1xb4-demo_cityscapes-like.py')
-    fixed = tmp_path / 'fixed.py'
-    fixed.write_text(f'_base_ = {recipe!r}\nfixed_img_scale = (96, 48)\n')
+    own = set(resizes(ce.read_config(recipe)))
+    assert own and (512, 256) not in own
     budget = ce.Budget(iters=2, img_scale=(512, 256))
-    cfg = ce.budget_cfg(str(fixed), budget, seed=0, data_root='/d',
-                        work_dir=str(tmp_path))
-    assert set(resizes(cfg)) == {(96, 48)}
+    cfg = ce.budget_cfg(recipe, budget, seed=0, data_root='/d',
+                        work_dir=str(tmp_path), keep_img_scale=True)
+    assert set(resizes(cfg)) == own
     plain = ce.budget_cfg(recipe, budget, seed=0, data_root='/d',
                           work_dir=str(tmp_path))
     assert set(resizes(plain)) == {(512, 256)}

@@ -99,6 +99,8 @@ def test_an_unknown_set_names_the_sets():
     (f"recipes = [{GOOD_ROW}]\npreset = 'moon'\n", "unknown preset 'moon'"),
     (f"recipes = [{GOOD_ROW}]\ncolumns = ['box AP', 'box AP99']\n",
      'unknown column'),
+    (f"recipes = [{GOOD_ROW}, dict(name='x', config='a.py', "
+     "keep_img_scale='yes')]\n", 'keep_img_scale must be True or False'),
     (f"recipes = [{GOOD_ROW}]\ntransfer_test = dict(condition='fog')\n",
      "transfer_test needs a non-empty 'data_root'"),
     (f"recipes = [{GOOD_ROW}]\ntransfer_test = dict(condition='fog', "
@@ -124,6 +126,9 @@ def test_a_well_formed_file_reads(tmp_path):
     assert spec.recipe('dcp').weights_of == 'stock'
     assert spec.recipe('zs').test_only and \
         spec.recipe('zs').budget == dict(iters_scale=0.5)
+    assert not spec.recipe('zs').keep_img_scale
+    assert sets.load_set('realfog_pretrained').recipe(
+        'Edge FCOS-lite, 320 px').keep_img_scale
     assert spec.columns[1][0] == 'box AP50' and spec.file == path
     assert spec.transfer_test == dict(condition='fog', data_root='d')
     assert sets.load_set('fog_transfer').transfer_test['condition'] == \
