@@ -21,6 +21,10 @@ ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 FOLDER = osp.join(ROOT, 'configs', 'coco_trunk')
 FOG = dict(rc.resolve_recipes('realfog_coco_trunk'))
 STREET = dict(rc.resolve_recipes('coco_street_coco_trunk'))
+#: the configs of configs/coco_trunk/fog_transfer (their own checks:
+#: tests/test_configs/test_fog_transfer_configs.py)
+TRANSFER = {n: p for n, p in rc.resolve_recipes('fog_transfer_coco')
+            if osp.normpath(p).startswith(osp.join(FOLDER, 'fog_transfer'))}
 STOCK = FOG['Cascade R-CNN, COCO trunk']
 COCO_FILE = 'yolox-nano_coco_megvii-0.1.1rc0.pth'
 
@@ -36,7 +40,7 @@ def test_every_config_of_the_folder_is_a_row():
                glob.glob(osp.join(FOLDER, '**', '*.py'), recursive=True)
                if '_base_' not in p}
     rows = {osp.normpath(p) for p in list(FOG.values()) +
-            list(STREET.values())}
+            list(STREET.values()) + list(TRANSFER.values())}
     assert shipped == rows
 
 
@@ -53,8 +57,8 @@ def test_builds_without_weights_with_the_trunks_input(name, path, tmp_path,
     assert trunk.init_cfg.prefix == 'backbone.'
     # YOLOX's input: raw 0-255 BGR
     pre = cfg.model.data_preprocessor
-    assert (pre.mean, pre.std, pre.bgr_to_rgb) == ([0.0] * 3, [1.0] * 3,
-                                                  False)
+    assert (pre.mean, pre.std, pre.bgr_to_rgb) == \
+        ([0.0] * 3, [1.0] * 3, False)
     masks = path in STREET.values()
     assert (cfg.model.roi_head.get('mask_head') is not None) == masks
     test = cfg.test_dataloader.dataset

@@ -1,4 +1,5 @@
-"""The fog_transfer configs: every row is its clear row plus one
+"""The fog_transfer configs, on ImageNet trunks (fog_transfer) and from
+a COCO start (fog_transfer_coco): every row is its clear row plus one
 stated change (synthetic fog in the training pipeline, CBNet-DD's model
 and twin pipeline, the dark channel prior or the learned dehazer at test
 time on the clear row's weights), tested also on DAWN's val split; each
@@ -17,19 +18,37 @@ from cbnet_tools import pretrained as pt
 
 ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 SHIPPED = sorted(
-    glob.glob(osp.join(ROOT, 'configs', 'pretrained', 'fog_transfer',
-                       '*.py')) +
-    glob.glob(osp.join(ROOT, 'projects', 'peer_dehaze', 'configs',
-                       'pretrained', 'fog_transfer', '*.py')))
-SET = rc.resolve_recipes('fog_transfer')
+    glob.glob(osp.join(ROOT, 'configs', '*', 'fog_transfer', '*.py')) +
+    glob.glob(osp.join(ROOT, 'projects', 'peer_dehaze', 'configs', '*',
+                       'fog_transfer', '*.py')))
+#: (set, row name, config) of the two transfer sets from COCO street
+SET = [(name, row, path) for name in ('fog_transfer', 'fog_transfer_coco')
+       for row, path in rc.resolve_recipes(name)]
 GENERATED = rc.resolve_recipes('fog_generated_to_real')
-#: the second test set of both sets: DAWN's val split
+#: the second test set of the sets: DAWN's val split
 TRANSFER = dict(condition='real fog', data_root='data/dawn_fog/',
                 split='val', val_fraction=0.3, split_seed=0)
 STREET = dict(rc.resolve_recipes('coco_street'))
-#: trunk and heads: the coco_street row each family starts from
-FAMILIES = {'Cascade Mask R-CNN': STREET['Cascade Mask R-CNN'],
-            'CBNet-PT': STREET['CBNet-PT']}
+COCO_STREET = dict(rc.resolve_recipes('coco_street_coco_trunk'))
+#: trunk and heads: the row each family starts from, and whether its
+#: clear row trains on that row's data too (the two-stage ones: the
+#: coco_street rows; YOLOX-Nano: the DAWN recipe's model, optimiser and
+#: hooks, on the street photos)
+FAMILIES = {
+    'Cascade Mask R-CNN, COCO trunk':
+    (COCO_STREET['Cascade Mask R-CNN, COCO trunk'], True),
+    'YOLOX-Nano COCO':
+    (dict(rc.resolve_recipes('realfog_coco'))['YOLOX-Nano COCO, fine-tuned'],
+     False),
+    'Cascade Mask R-CNN': (STREET['Cascade Mask R-CNN'], True),
+    'CBNet-PT': (STREET['CBNet-PT'], True),
+}
+
+
+def family_of(name):
+    """The longest family name the row names (the COCO-trunk cascade's
+    rows name the ImageNet cascade's too)."""
+    return max((f for f in FAMILIES if f in name), key=len)
 
 
 def load(path):
@@ -43,11 +62,13 @@ def empty_cache(tmp_path, monkeypatch):
 
 
 def test_every_config_is_in_a_set():
-    assert sorted(osp.normpath(p) for _, p in SET + GENERATED) == SHIPPED
-    assert len(SET) == 10 and len(GENERATED) == 4
-    # both sets' runs are also tested on DAWN's val split (the same 65
+    assert sorted([osp.normpath(p) for _, _, p in SET] +
+                  [osp.normpath(p) for _, p in GENERATED]) == SHIPPED
+    assert len(SET) == 19 and len(GENERATED) == 4
+    # the sets' runs are also tested on DAWN's val split (the same 65
     # photos as the realfog_pretrained set)
-    for name in ('fog_transfer', 'fog_generated_to_real'):
+    for name in ('fog_transfer', 'fog_transfer_coco',
+                 'fog_generated_to_real'):
         assert rc.SETS[name].transfer_test == TRANSFER
 
 
@@ -59,8 +80,8 @@ def test_generated_fog_row_is_its_clear_row_on_depth_fog(name, path):
     clear_path = dict(GENERATED)[name.replace('generated fog',
                                               'generated clear')]
     clear, cfg = load(clear_path), load(path)
-    family = next(f for f in FAMILIES if f in name)
-    assert clear.model == load(FAMILIES[family]).model
+    family = family_of(name)
+    assert clear.model == load(FAMILIES[family][0]).model
     assert clear.train_dataloader.dataset.dataset.type == \
         'CBNetCityscapesDataset'
     fog = cfg.train_dataloader.dataset.dataset
@@ -72,16 +93,24 @@ def test_generated_fog_row_is_its_clear_row_on_depth_fog(name, path):
     assert cfg.test_dataloader == clear.test_dataloader
 
 
-@pytest.mark.parametrize('name,path', SET, ids=[n for n, _ in SET])
-def test_row_is_its_clear_row_plus_one_change(name, path):
-    family = next(f for f in FAMILIES if f in name)
-    clear = load(dict(SET)[f'{family}, clear'])
-    street = load(FAMILIES[family])
+@pytest.mark.parametrize('set_name,name,path', SET,
+                         ids=[n for _, n, _ in SET])
+def test_row_is_its_clear_row_plus_one_change(set_name, name, path):
+    family = family_of(name)
+    rows = {n: p for s, n, p in SET if s == set_name}
+    clear = load(rows[f'{family}, clear'])
+    start, same_data = FAMILIES[family]
+    street = load(start)
     cfg = load(path)
-    # the clear row is the coco_street recipe, also tested on DAWN's val
+    # the clear row is the family's recipe, also tested on DAWN's val
     assert clear.model == street.model
-    assert clear.train_dataloader == street.train_dataloader
-    assert clear.test_dataloader == street.test_dataloader
+    if same_data:
+        assert clear.train_dataloader == street.train_dataloader
+        assert clear.test_dataloader == street.test_dataloader
+    else:
+        assert clear.optim_wrapper == street.optim_wrapper
+        assert clear.custom_hooks == street.custom_hooks
+        assert clear.load_from == street.load_from
     assert cfg.test_dataloader == clear.test_dataloader
     steps = [t['type'] for t in cfg.train_dataloader.dataset.pipeline]
     plain = [t['type'] for t in clear.train_dataloader.dataset.pipeline]
@@ -103,7 +132,7 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
             type='CBNetPairedDataPreprocessor')
         assert [h.type for h in cfg.custom_hooks] == ['CBNetTeacherEMAHook']
     else:  # a dehazer in front of the clear row's weights, test only
-        assert rc.SETS['fog_transfer'].recipe(name).weights_of == \
+        assert rc.SETS[set_name].recipe(name).weights_of == \
             f'{family}, clear'
         front = cfg.model.data_preprocessor
         assert front.type == 'CBNetDehazeDataPreprocessor'
@@ -126,8 +155,10 @@ def test_row_is_its_clear_row_plus_one_change(name, path):
         assert cfg.model == clear.model
 
 
-@pytest.mark.parametrize('name,path', SET + GENERATED,
-                         ids=[n for n, _ in SET + GENERATED])
+@pytest.mark.parametrize('name,path', [(n, p) for _, n, p in SET] +
+                         GENERATED,
+                         ids=[n for _, n, _ in SET] +
+                         [n for n, _ in GENERATED])
 def test_builds_without_weights_and_tests_on_real_fog(name, path,
                                                       tmp_path):
     cfg = load(path)
@@ -135,7 +166,9 @@ def test_builds_without_weights_and_tests_on_real_fog(name, path,
     model = MODELS.build(cfg.model)  # no weights file read at build time
     model.eval()
     with torch.no_grad():
-        assert len(model.extract_feat(torch.zeros(1, 3, 128, 192))) == 5
+        # YOLOX's three levels; the two-stage models' FPN five
+        assert len(model.extract_feat(torch.zeros(1, 3, 128, 192))) == \
+            (3 if 'YOLOX' in name else 5)
     # the second test set: DAWN's val split through the recipe's own test
     # pipeline, boxes only
     fog = transfer_cfg(cfg, TRANSFER, str(tmp_path))
@@ -145,3 +178,29 @@ def test_builds_without_weights_and_tests_on_real_fog(name, path,
         ('CBNetVOCFogDataset', str(tmp_path), 'val', 0.3, 0)
     assert fog.test_evaluator == [dict(type='CocoMetric', metric='bbox')]
     assert dataset.pipeline[2] == cfg.test_dataloader.dataset.pipeline[2]
+
+
+def test_yolox_clear_row_trains_on_the_street_boxes_as_long():
+    """YOLOX-Nano's clear row: the street photos with a street object,
+    boxes only, batches of 4 for the coco_street budget's 36 epochs, its
+    schedule and checkpoint made for them (not the DAWN recipe's 12); its
+    rows run at that batch and half the set's iterations (the same images
+    seen)."""
+    rows = {n: p for s, n, p in SET if s == 'fog_transfer_coco'}
+    cfg = load(rows['YOLOX-Nano COCO, clear'])
+    data = cfg.train_dataloader
+    assert data.batch_size == 4
+    assert data.dataset.type == 'CBNetCityscapesDataset'
+    assert data.dataset.filter_cfg.filter_empty_gt
+    for loader in (data, cfg.test_dataloader):
+        loads = [t for t in loader.dataset.pipeline
+                 if t['type'] == 'LoadAnnotations']
+        assert [t.get('with_mask', False) for t in loads] == [False]
+    assert [e.metric for e in cfg.test_evaluator] == ['bbox']
+    assert cfg.train_cfg.max_epochs == 36
+    assert cfg.param_scheduler[1].end == cfg.param_scheduler[1].T_max == 36
+    assert cfg.default_hooks.checkpoint.interval == 36
+    for name in rows:
+        if 'YOLOX' in name:
+            assert rc.SETS['fog_transfer_coco'].recipe(name).budget == \
+                dict(batch_size=4, iters_scale=0.5)

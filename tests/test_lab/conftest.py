@@ -1,7 +1,9 @@
 """An oracle detector and a test config around it, for the evaluation
 tools (AP drop, robustness) run through MMEngine's Runner; a seeded
 MobileNetV2 weights file where the pretrained configs look for their
-trunk (``fake_weights``, the pretrained sets' end-to-end tests)."""
+trunk (``fake_weights``, the pretrained sets' end-to-end tests); a tiny
+clear COCO street set beside a tiny VOC fog folder (``street_and_fog``,
+the transfer sets' end-to-end tests)."""
 import os
 import os.path as osp
 
@@ -121,3 +123,18 @@ def fake_weights(tmp_path, monkeypatch):
     torch.save(dict(state_dict=model.state_dict()),
                pt.pretrained_path('mobilenet_v2'))
     return model.state_dict()
+
+
+@pytest.fixture
+def street_and_fog(cityscapes_like_root, tmp_path):
+    """A tiny clear COCO street set (through tools/dataset_converters/
+    coco_street.py) and a tiny VOC fog folder: their two paths."""
+    from set_helpers import fake_coco
+    from tool_helpers import load_tool
+
+    from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
+    fake_coco(cityscapes_like_root, str(tmp_path / 'coco'))
+    load_tool('dataset_converters/coco_street.py').main(
+        [str(tmp_path / 'coco'), str(tmp_path / 'street')])
+    tiny_fog_folder(str(tmp_path / 'fog'), num_images=10)
+    return str(tmp_path / 'street'), str(tmp_path / 'fog')

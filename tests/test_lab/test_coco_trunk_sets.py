@@ -1,14 +1,19 @@
-"""The COCO-trunk sets end to end on tiny fake data: realfog_coco_trunk
-(a VOC folder, boxes) and coco_street_coco_trunk (the COCO street
-converter's output, masks), each from seeded stand-ins of the converted
-YOLOX-Nano file built here (no weights file, no network): the trained
-models started from the stand-in's trunk and kept its batch-norm
-statistics."""
+"""The COCO-start sets end to end on tiny fake data: realfog_coco_trunk
+(a VOC folder, boxes), coco_street_coco_trunk (the COCO street
+converter's output, masks) and fog_transfer_coco (trained on the clear
+street set, tested on it and on the VOC folder), each from seeded
+stand-ins of the converted YOLOX-Nano files built here (no weights file,
+no network): the trained models started from the stand-in's trunk and
+kept its batch-norm statistics."""
+import os.path as osp
+from dataclasses import replace
+
 import pytest
 import torch
-from set_helpers import fake_coco
+from set_helpers import ROOT, fake_coco, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
+from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_tools import pretrained as pt
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
@@ -77,5 +82,53 @@ def test_coco_street_coco_trunk_set_end_to_end(
     metrics = record['runs'][0]['metrics']['coco street']
     assert 'coco/segm_mAP' in metrics and 'cityscapes/mIoU' in metrics
     state = torch.load(rc.checkpoint_file(runs, row, 0, BUDGET),
+                       map_location='cpu')['state_dict']
+    started_from(state, fake_coco_yolox)
+
+
+def test_fog_transfer_coco_set_end_to_end(street_and_fog, fake_coco_yolox,
+                                          tmp_path, monkeypatch):
+    """Trained on the clear street photos, tested there and on real fog:
+    the COCO-trunk cascade (clear, CBNet-DD), YOLOX-Nano whole at its own
+    batch, and dehazers in front of each clear row's checkpoint (trains
+    nothing)."""
+    street, fog = street_and_fog
+    monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
+    save_untrained_dehazer(str(tmp_path / ce.read_config(osp.join(
+        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
+        'dehazers.py')).fog_dehazer_checkpoint))
+    cascade, yolox = ('Cascade Mask R-CNN, COCO trunk, clear',
+                      'YOLOX-Nano COCO, clear')
+    rows = [cascade, 'Cascade Mask R-CNN, COCO trunk, CBNet-DD',
+            'dehazer + Cascade Mask R-CNN, COCO trunk, clear (test only)',
+            yolox, 'DCP + YOLOX-Nano COCO, clear (test only)']
+    runs = str(tmp_path / 'runs')
+    record = load_tool('analysis_tools/compare_recipes.py').main(
+        ['--set', 'fog_transfer_coco', '--data-root', street,
+         '--transfer-root', fog, '--img-scale', '160', '96', '--work-dir',
+         runs, '--only'] + rows + FAST + ['--cfg-options'] +
+        TEST_IN_PROCESS)
+    by_name = {r['recipe']: r for r in record['runs']}
+    assert list(by_name) == rows
+    assert record['summary']['conditions'] == ['coco street', 'real fog']
+    for name, run in by_name.items():
+        assert list(run['metrics']) == ['coco street', 'real fog']
+        assert 0.0 <= run['metrics']['real fog']['coco/bbox_mAP'] <= 1.0
+        assert 'coco/segm_mAP' not in run['metrics']['real fog']
+        # YOLOX predicts boxes only; the cascades masks too
+        assert ('coco/segm_mAP' in run['metrics']['coco street']) == \
+            ('YOLOX' not in name)
+        if '(test only)' in name:
+            assert run['train_time_s'] is None
+            assert run['weights_of'] == (yolox if 'YOLOX' in name
+                                         else cascade)
+    # YOLOX-Nano trained at its own batch of 4 for half the iterations
+    # (the same images seen), from the stand-in's 8-class file
+    yolox_budget = replace(BUDGET, batch_size=4, iters=1)
+    state = torch.load(rc.checkpoint_file(runs, yolox, 0, yolox_budget),
+                       map_location='cpu')['state_dict']
+    assert state['bbox_head.multi_level_conv_cls.0.weight'].shape[0] == 8
+    torch.testing.assert_close(state[PROBE_NORM], fake_coco_yolox[PROBE_NORM])
+    state = torch.load(rc.checkpoint_file(runs, cascade, 0, BUDGET),
                        map_location='cpu')['state_dict']
     started_from(state, fake_coco_yolox)

@@ -14,7 +14,7 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.runner import Runner
-from set_helpers import ROOT, fake_coco, save_untrained_dehazer
+from set_helpers import ROOT, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import config_edits as ce
@@ -22,7 +22,6 @@ from cbnet_lab import plan
 from cbnet_lab import recipe_comparison as rc
 from cbnet_lab import run as lab_run
 from cbnet_lab import set_conditions, summary
-from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
 
 ROWS = [n for n, _ in rc.RECIPE_SETS['fog_transfer']]
 #: test-only row -> the row whose checkpoint it tests
@@ -30,16 +29,6 @@ TEST_ONLY = {f'{dehazer} + {model}, clear (test only)': f'{model}, clear'
              for dehazer in ('DCP', 'dehazer')
              for model in ('Cascade Mask R-CNN', 'CBNet-PT')}
 SCALE = ['--img-scale', '160', '96']
-
-
-@pytest.fixture
-def tiny_data(cityscapes_like_root, tmp_path):
-    """A tiny clear COCO street set (converted) and a tiny VOC fog folder."""
-    fake_coco(cityscapes_like_root, str(tmp_path / 'coco'))
-    load_tool('dataset_converters/coco_street.py').main(
-        [str(tmp_path / 'coco'), str(tmp_path / 'street')])
-    tiny_fog_folder(str(tmp_path / 'fog'), num_images=10)
-    return str(tmp_path / 'street'), str(tmp_path / 'fog')
 
 
 def ceiling_record(path, box_ap=(12.5, 8.0)):
@@ -58,9 +47,9 @@ def ceiling_record(path, box_ap=(12.5, 8.0)):
 
 
 @pytest.mark.slow
-def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,
+def test_fog_transfer_set_end_to_end(street_and_fog, fake_weights,
                                      tmp_path, monkeypatch):
-    street, fog = tiny_data
+    street, fog = street_and_fog
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
     dehazer_file = str(tmp_path / ce.read_config(osp.join(
         ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
@@ -177,12 +166,12 @@ def test_fog_transfer_set_end_to_end(tiny_data, fake_weights,
 
 
 @pytest.mark.slow
-def test_generated_to_real_set_end_to_end(cityscapes_like_root, tiny_data,
+def test_generated_to_real_set_end_to_end(cityscapes_like_root, street_and_fog,
                                           fake_weights,
                                           tmp_path):
     """Item 3: trained on the generated scenes (clear, or their depth fog),
     tested on generated clear and foggy val, then on real fog."""
-    _, fog = tiny_data
+    _, fog = street_and_fog
     tool = load_tool('analysis_tools/compare_recipes.py')
     record = tool.main(
         ['--set', 'fog_generated_to_real', '--data-root',
