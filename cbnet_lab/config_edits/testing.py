@@ -67,9 +67,16 @@ def condition_cfg(cfg: Config, beta: Optional[float] = None) -> Config:
     cfg = copy.deepcopy(cfg)
     ds = cfg.test_dataloader.dataset
     if ds.type not in CLEAR_TYPES + (FOGGY_TYPE, ):
+        # real data has no clear / foggy twin: its folder names its
+        # condition, or --real-fog tests any config on a VOC folder
+        hint = '' if ds.type != 'CBNetVOCFogDataset' else (
+            f'; a VOC real-fog folder ({cfg.get("data_root")!r}) is tested '
+            'as it is when its folder name is a key of test_conditions in '
+            'configs/experiments/_base_/presets.py, or with --real-fog '
+            'FOLDER')
         raise ValueError(
             f'test_dataloader.dataset.type must be one of '
-            f'{CLEAR_TYPES + (FOGGY_TYPE, )}, got {ds.type!r}')
+            f'{CLEAR_TYPES + (FOGGY_TYPE, )}, got {ds.type!r}{hint}')
     if beta is None:
         if ds.type == FOGGY_TYPE:
             ds.type = 'CBNetCityscapesDataset'

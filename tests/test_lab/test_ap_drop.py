@@ -32,6 +32,13 @@ def test_condition_cfg():
     cfg.test_dataloader.dataset.type = 'CocoDataset'
     with pytest.raises(ValueError, match='CocoDataset'):
         condition_cfg(cfg, 0.02)
+    # a VOC real-fog folder of the user's own name: the error says how it
+    # is tested
+    cfg.test_dataloader.dataset.type = 'CBNetVOCFogDataset'
+    cfg.data_root = 'data/my_fog/'
+    with pytest.raises(ValueError, match=r"'data/my_fog/'.*test_conditions"
+                       r".*--real-fog FOLDER"):
+        condition_cfg(cfg, None)
 
 
 def test_drop_table_and_markdown():
