@@ -68,6 +68,7 @@ def test_results_say_whose_numbers_they_are(models):
             if 'real photographs' in dataset:
                 assert m['Config'].startswith(
                     ('configs/pretrained/', 'configs/yolox_coco/',
+                     'configs/coco_trunk/',
                      'projects/peer_dehaze/configs/pretrained/',
                      'projects/peer_dehaze/configs/yolox_coco/'))
             for value in result['Metrics'].values():
