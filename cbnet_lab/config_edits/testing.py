@@ -31,6 +31,8 @@ from cbnet_tools.quick_eval import check_subset_scoring
 
 CLEAR_TYPES = ('CityscapesDataset', 'CBNetCityscapesDataset')
 FOGGY_TYPE = 'CBNetFoggyCityscapesDataset'
+#: The dataset of a VOC real-fog folder (:func:`real_fog_cfg`).
+VOC_TYPE = 'CBNetVOCFogDataset'
 #: ``PackDetInputs``' default ``meta_keys`` (MMDet 3.x).
 PACK_META_KEYS = ('img_id', 'img_path', 'ori_shape', 'img_shape',
                   'scale_factor', 'flip', 'flip_direction')
@@ -69,7 +71,7 @@ def condition_cfg(cfg: Config, beta: Optional[float] = None) -> Config:
     if ds.type not in CLEAR_TYPES + (FOGGY_TYPE, ):
         # real data has no clear / foggy twin: its folder names its
         # condition, or --real-fog tests any config on a VOC folder
-        hint = '' if ds.type != 'CBNetVOCFogDataset' else (
+        hint = '' if ds.type != VOC_TYPE else (
             f'; a VOC real-fog folder ({cfg.get("data_root")!r}) is tested '
             'as it is when its folder name is a key of test_conditions in '
             'configs/experiments/_base_/presets.py, or with --real-fog '
@@ -124,7 +126,7 @@ def real_fog_cfg(cfg: Config, data_root: str, split: Optional[str] = 'val',
             transform['meta_keys'] = keys + ('instances', ) * (
                 'instances' not in keys)
         pipeline.append(transform)
-    dataset = dict(type='CBNetVOCFogDataset', data_root=data_root,
+    dataset = dict(type=VOC_TYPE, data_root=data_root,
                    ann_file='', test_mode=True, pipeline=pipeline)
     if split is not None:
         dataset['split'] = split

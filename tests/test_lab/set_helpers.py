@@ -58,13 +58,17 @@ def fake_coco(cityscapes_like_root, out):
     return images, anns
 
 
-def save_untrained_dehazer(path):
-    """An initialised demo dehazer where the realfog configs load it."""
+def save_untrained_dehazer(root):
+    """An initialised demo dehazer where the realfog configs load it: their
+    ``fog_dehazer_checkpoint`` (a relative path) under ``root``, the
+    folder the test runs in. Returns that file."""
     import cbnet_dehaze  # noqa: F401  (registers the dehazer)
-    cfg = Config.fromfile(osp.join(ROOT, 'projects', 'peer_dehaze',
-                                   'configs', '_base_',
-                                   'attention_dehazer.py'))
+    configs = osp.join(ROOT, 'projects', 'peer_dehaze', 'configs')
+    cfg = Config.fromfile(osp.join(configs, '_base_', 'attention_dehazer.py'))
+    path = osp.join(str(root), Config.fromfile(osp.join(
+        configs, 'realfog', '_base_', 'dehazers.py')).fog_dehazer_checkpoint)
     torch.manual_seed(0)
     dehazer = MODELS.build(cfg.dehazer)
     os.makedirs(osp.dirname(path), exist_ok=True)
     torch.save({'state_dict': dehazer.state_dict()}, path)
+    return path

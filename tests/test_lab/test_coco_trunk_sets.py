@@ -5,15 +5,13 @@ street set, tested on it and on the VOC folder), each from seeded
 stand-ins of the converted YOLOX-Nano files built here (no weights file,
 no network): the trained models started from the stand-in's trunk and
 kept its batch-norm statistics."""
-import os.path as osp
 from dataclasses import replace
 
 import pytest
 import torch
-from set_helpers import ROOT, fake_coco, save_untrained_dehazer
+from set_helpers import fake_coco, save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
-from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
 from cbnet_tools import pretrained as pt
 from cbnet_tools.synthetic.voc_folder import tiny_fog_folder
@@ -94,9 +92,7 @@ def test_fog_transfer_coco_set_end_to_end(street_and_fog, fake_coco_yolox,
     nothing)."""
     street, fog = street_and_fog
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
-    save_untrained_dehazer(str(tmp_path / ce.read_config(osp.join(
-        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
-        'dehazers.py')).fog_dehazer_checkpoint))
+    save_untrained_dehazer(tmp_path)
     cascade, yolox = ('Cascade Mask R-CNN, COCO trunk, clear',
                       'YOLOX-Nano COCO, clear')
     rows = [cascade, 'Cascade Mask R-CNN, COCO trunk, CBNet-DD',

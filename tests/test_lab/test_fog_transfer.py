@@ -14,7 +14,7 @@ import pytest
 import torch
 from mmengine.config import Config
 from mmengine.runner import Runner
-from set_helpers import ROOT, save_untrained_dehazer
+from set_helpers import save_untrained_dehazer
 from tool_helpers import FAST, TEST_IN_PROCESS, load_tool
 
 from cbnet_lab import config_edits as ce
@@ -51,10 +51,7 @@ def test_fog_transfer_set_end_to_end(street_and_fog, fake_weights,
                                      tmp_path, monkeypatch):
     street, fog = street_and_fog
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
-    dehazer_file = str(tmp_path / ce.read_config(osp.join(
-        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
-        'dehazers.py')).fog_dehazer_checkpoint)
-    save_untrained_dehazer(dehazer_file)
+    dehazer_file = save_untrained_dehazer(tmp_path)
     trained, tested = [], []
     train, test = Runner.train, lab_run.ap_drop
 

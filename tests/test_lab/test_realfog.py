@@ -192,10 +192,7 @@ def test_realfog_set_end_to_end(fog_root, tmp_path, monkeypatch, capsys,
     under 'real fog' (box AP only, no foggy betas), the table, record and
     bar plot are written; a rerun reads the runs back."""
     monkeypatch.chdir(tmp_path)  # the dehazer checkpoint path is relative
-    dehazer = Config.fromfile(osp.join(
-        ROOT, 'projects', 'peer_dehaze', 'configs', 'realfog', '_base_',
-        'dehazers.py')).fog_dehazer_checkpoint
-    save_untrained_dehazer(str(tmp_path / dehazer))
+    save_untrained_dehazer(tmp_path)
     tool = load_tool('analysis_tools/compare_recipes.py')
     argv = ['--set', 'realfog', '--data-root', fog_root, '--seeds', '0',
             '--iters', '2', '--batch-size', '2', '--num-workers', '0',
