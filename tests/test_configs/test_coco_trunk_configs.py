@@ -21,6 +21,9 @@ ROOT = osp.dirname(osp.dirname(osp.dirname(osp.abspath(__file__))))
 FOLDER = osp.join(ROOT, 'configs', 'coco_trunk')
 FOG = dict(rc.resolve_recipes('realfog_coco_trunk'))
 STREET = dict(rc.resolve_recipes('coco_street_coco_trunk'))
+#: the stock mask recipe with one part of CBNet each (configs/coco_trunk/
+#: parts; which part: tests/test_configs/test_coco_trunk_parts_configs.py)
+PARTS = dict(rc.resolve_recipes('coco_street_coco_trunk_parts'))
 #: the configs of configs/coco_trunk/fog_transfer (their own checks:
 #: tests/test_configs/test_fog_transfer_configs.py)
 TRANSFER = {n: p for n, p in rc.resolve_recipes('fog_transfer_coco')
@@ -40,11 +43,13 @@ def test_every_config_of_the_folder_is_a_row():
                glob.glob(osp.join(FOLDER, '**', '*.py'), recursive=True)
                if '_base_' not in p}
     rows = {osp.normpath(p) for p in list(FOG.values()) +
-            list(STREET.values()) + list(TRANSFER.values())}
+            list(STREET.values()) + list(PARTS.values()) +
+            list(TRANSFER.values())}
     assert shipped == rows
 
 
-@pytest.mark.parametrize('name,path', sorted({**FOG, **STREET}.items()))
+@pytest.mark.parametrize('name,path',
+                         sorted({**FOG, **STREET, **PARTS}.items()))
 def test_builds_without_weights_with_the_trunks_input(name, path, tmp_path,
                                                       monkeypatch):
     monkeypatch.setenv(pt.PRETRAINED_DIR_ENV, str(tmp_path / 'none'))
@@ -59,7 +64,7 @@ def test_builds_without_weights_with_the_trunks_input(name, path, tmp_path,
     pre = cfg.model.data_preprocessor
     assert (pre.mean, pre.std, pre.bgr_to_rgb) == \
         ([0.0] * 3, [1.0] * 3, False)
-    masks = path in STREET.values()
+    masks = path in STREET.values() or path in PARTS.values()
     assert (cfg.model.roi_head.get('mask_head') is not None) == masks
     test = cfg.test_dataloader.dataset
     if masks:

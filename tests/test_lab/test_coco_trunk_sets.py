@@ -84,6 +84,43 @@ def test_coco_street_coco_trunk_set_end_to_end(
     started_from(state, fake_coco_yolox)
 
 
+def test_coco_street_coco_trunk_parts_set_end_to_end(
+        cityscapes_like_root, fake_coco_yolox, tmp_path):
+    """The parts set's one-head row trains the paper's single mask head;
+    its whole CBNet-PT row is the coco_street_coco_trunk set's run, read
+    back by that set from the shared work dir without training again."""
+    fake_coco(cityscapes_like_root, str(tmp_path / 'coco'))
+    street = str(tmp_path / 'street')
+    load_tool('dataset_converters/coco_street.py').main(
+        [str(tmp_path / 'coco'), street])
+    runs = str(tmp_path / 'runs')
+    one_head, whole = ('Cascade Mask R-CNN +last-stage mask, COCO trunk',
+                       'CBNet-PT, COCO trunk')
+    common = ['--data-root', street, '--img-scale', '160', '96',
+              '--work-dir', runs]
+    compare = load_tool('analysis_tools/compare_recipes.py').main
+    record = compare(['--set', 'coco_street_coco_trunk_parts', '--only',
+                      one_head, whole] + common + FAST + ['--cfg-options'] +
+                     TEST_IN_PROCESS)
+    by_name = {r['recipe']: r for r in record['runs']}
+    assert list(by_name) == [one_head, whole]
+    state = torch.load(rc.checkpoint_file(runs, one_head, 0, BUDGET),
+                       map_location='cpu')['state_dict']
+    started_from(state, fake_coco_yolox)
+    heads = {k.split('.')[2] for k in state
+             if k.startswith('roi_head.mask_head.')}
+    assert not heads & {'0', '1', '2'}, heads  # one head, not one per stage
+    state = torch.load(rc.checkpoint_file(runs, whole, 0, BUDGET),
+                       map_location='cpu')['state_dict']
+    assert {'0', '1', '2'} <= {k.split('.')[2] for k in state
+                               if k.startswith('roi_head.mask_head.')}
+    again = compare(['--set', 'coco_street_coco_trunk', '--only', whole,
+                     '--report-only'] + common + FAST + ['--cfg-options'] +
+                    TEST_IN_PROCESS)
+    assert [r['metrics'] for r in again['runs']] == \
+        [by_name[whole]['metrics']]
+
+
 def test_fog_transfer_coco_set_end_to_end(street_and_fog, fake_coco_yolox,
                                           tmp_path, monkeypatch):
     """Trained on the clear street photos, tested there and on real fog:

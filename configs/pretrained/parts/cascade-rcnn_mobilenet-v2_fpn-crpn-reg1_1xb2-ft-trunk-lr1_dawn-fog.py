@@ -8,14 +8,4 @@ _base_ = [
     'dawn-fog.py',
     '../../demo/parts/_base_/parts.py',
 ]
-model = dict(
-    rpn_head=dict(_delete_=True,
-                  **dict(_base_.cbnet_rpn_head,
-                         loss_iou=dict(_base_.cbnet_rpn_head.loss_iou,
-                                       loss_weight=_base_.crpn_reg_weight),
-                         loss_giou=dict(_base_.cbnet_rpn_head.loss_giou,
-                                        loss_weight=_base_.crpn_reg_weight))),
-    train_cfg=dict(
-        rpn=_base_.cbnet_rpn_train_cfg,
-        rpn_proposal=dict(nms=_base_.cbnet_rpn_nms)),
-    test_cfg=dict(rpn=dict(nms=_base_.cbnet_rpn_nms)))
+model = _base_.cbnet_rpn_reg1_in_stock

@@ -141,3 +141,20 @@ crpn_reg_weight = 1.0
 crpn_reg1 = dict(
     loss_iou=dict(loss_weight=crpn_reg_weight),
     loss_giou=dict(loss_weight=crpn_reg_weight))
+
+# the model deltas that put CBNet's Cascade RPN (head, training settings,
+# NMS) in place of a stock recipe's RPNHead: as the paper weights its
+# regression losses, and weighted 1 (the revised CBNet's, CBNet-PT's)
+cbnet_rpn_in_stock = dict(
+    rpn_head=dict(_delete_=True, **cbnet_rpn_head),
+    train_cfg=dict(
+        rpn=cbnet_rpn_train_cfg, rpn_proposal=dict(nms=cbnet_rpn_nms)),
+    test_cfg=dict(rpn=dict(nms=cbnet_rpn_nms)))
+cbnet_rpn_reg1_in_stock = dict(
+    cbnet_rpn_in_stock,
+    rpn_head=dict(
+        cbnet_rpn_in_stock['rpn_head'],
+        loss_iou=dict(cbnet_rpn_head['loss_iou'],
+                      loss_weight=crpn_reg_weight),
+        loss_giou=dict(cbnet_rpn_head['loss_giou'],
+                       loss_weight=crpn_reg_weight)))
