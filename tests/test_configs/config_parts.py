@@ -52,3 +52,15 @@ def owner(key):
 def diff(a, b):
     return {k for k in set(a) | set(b) if a.get(k, '<absent>') !=
             b.get(k, '<absent>')}
+
+
+def assert_takes_part(base, row, part, source=None, label=''):
+    """``row`` (flat model) is ``base`` with ``part`` changed and nothing
+    else; with ``source``, what changed is ``source``'s part, whole."""
+    changed = diff(base, row)
+    assert changed, f'{label} changes nothing'
+    assert {p for k in changed for p in owner(k)} == {part}, sorted(changed)
+    if source is None:
+        return
+    for key in {k for k in set(base) | set(source) if part in owner(k)}:
+        assert row.get(key, '<absent>') == source.get(key, '<absent>'), key

@@ -5,7 +5,7 @@ config is one of the two with one of them taken from the other, whole."""
 import os.path as osp
 
 import pytest
-from config_parts import diff, model_of, owner
+from config_parts import assert_takes_part, diff, model_of, owner
 
 from cbnet_lab import config_edits as ce
 from cbnet_lab import recipe_comparison as rc
@@ -56,11 +56,7 @@ def test_each_config_swaps_exactly_one_part(recipes, config, start, part):
     base = recipes[start]
     other = recipes['revised' if start == 'stock' else 'stock']
     row = model_of(osp.join(PRETRAINED, config))
-    changed = diff(base, row)
-    assert changed, f'{config} changes nothing'
-    assert {p for k in changed for p in owner(k)} == {part}, sorted(changed)
-    for key in {k for k in set(base) | set(other) if part in owner(k)}:
-        assert row.get(key, '<absent>') == other.get(key, '<absent>'), key
+    assert_takes_part(base, row, part, other, config)
 
 
 def test_the_set_lists_both_recipes_and_every_swap_once():
