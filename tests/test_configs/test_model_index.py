@@ -70,6 +70,7 @@ def test_results_say_whose_numbers_they_are(models):
                     ('configs/pretrained/', 'configs/yolox_coco/',
                      'configs/coco_trunk/',
                      'projects/peer_dehaze/configs/pretrained/',
+                     'projects/peer_dehaze/configs/coco_trunk/',
                      'projects/peer_dehaze/configs/yolox_coco/'))
             for value in result['Metrics'].values():
                 assert 0 <= value <= 100
